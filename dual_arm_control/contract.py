@@ -1,0 +1,86 @@
+"""
+The graph's interface, defined once: arms, joint names, topics, message types and QoS.
+
+Every node, the launcher, the bag tools and the tests take names and types from here. Per-arm
+topics are relative names resolved under the arm namespace (``/left``, ``/right``).
+"""
+
+from dataclasses import dataclass
+
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from nav_msgs.msg import Odometry
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, String
+from visualization_msgs.msg import MarkerArray
+
+ARMS = ('left', 'right')
+JOINTS_PER_ARM = 7
+WORLD_FRAME = 'world'
+
+# Control-loop traffic: every message matters in lockstep, and a late one must not block a
+# newer one. Reliable with a short keep-last queue on both sides.
+CONTROL_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE)
+# Sensor-like streams that a late subscriber may join (mocap, ground truth, markers).
+SENSOR_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE)
+# The phase is a state: a late subscriber gets the last one.
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def joint_names(arm):
+    """Return the seven joint names of an arm as they appear in JointState messages."""
+    if arm not in ARMS:
+        raise ValueError(f'unknown arm {arm!r}; expected one of {ARMS}')
+    return [f'{arm}_A{index}' for index in range(1, JOINTS_PER_ARM + 1)]
+
+
+@dataclass(frozen=True)
+class Topic:
+    """A topic of the graph: name (relative names live under an arm namespace), type, QoS."""
+
+    name: str
+    msg_type: type
+    qos: QoSProfile
+    per_arm: bool = False
+
+    def resolved(self, arm=None):
+        """Return the absolute topic name, for the given arm if the topic is per arm."""
+        if self.per_arm:
+            if arm not in ARMS:
+                raise ValueError(f'topic {self.name} is per arm; give one of {ARMS}')
+            return f'/{arm}/{self.name}'
+        return self.name
+
+
+CLOCK = Topic('/clock', Clock, CONTROL_QOS)
+JOINT_STATES = Topic('joint_states', JointState, CONTROL_QOS, per_arm=True)
+TORQUE_COMMAND = Topic('torque_command', JointState, CONTROL_QOS, per_arm=True)
+FT_WRENCH = Topic('ft_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
+MOCAP_OBJECT_POSE = Topic('/mocap/object_pose', PoseStamped, SENSOR_QOS)
+OBJECT_STATE = Topic('/object/state', Odometry, CONTROL_QOS)
+DS_COMMAND = Topic('ds_command', Odometry, CONTROL_QOS, per_arm=True)
+CONTACT_WRENCH = Topic('contact_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
+OBJECT_DESIRED_TWIST = Topic('/object/desired_twist', TwistStamped, CONTROL_QOS)
+PHASE = Topic('/dual_arm/phase', String, LATCHED_QOS)
+MARKERS = Topic('/dual_arm/markers', MarkerArray, SENSOR_QOS)
+GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, SENSOR_QOS)
+GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, SENSOR_QOS,
+                                per_arm=True)
+GROUND_TRUTH_PAD_CONTACT = Topic('ground_truth/pad_contact', Bool, SENSOR_QOS, per_arm=True)
+
+ALL_TOPICS = (
+    CLOCK, JOINT_STATES, TORQUE_COMMAND, FT_WRENCH, MOCAP_OBJECT_POSE, OBJECT_STATE, DS_COMMAND,
+    CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, GROUND_TRUTH_OBJECT,
+    GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_PAD_CONTACT,
+)
+
+# Services of the bridge (std_srvs/Trigger) and their names.
+SIM_RESET_SERVICE = '/sim/reset'
+SIM_MOVE_OBJECT_SERVICE = '/sim/move_object'

@@ -1,0 +1,106 @@
+"""
+Small rotation and frame helpers shared by the DS, tracker and controllers.
+
+Quaternions are stored as (x, y, z, w), the ROS message order; names carry ``quat_xyzw``.
+"""
+
+from dual_arm_control.core.exceptions import InputError
+import numpy as np
+
+
+_SMALL_ANGLE = 1e-9
+
+
+def skew(vector):
+    """Return the (3, 3) skew-symmetric matrix [v]x such that [v]x @ u = v x u."""
+    x, y, z = vector
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def unit(vector, name='vector'):
+    """Return vector / ||vector||; raise InputError for a (near) zero vector."""
+    vector = np.asarray(vector, dtype=float)
+    norm = np.linalg.norm(vector)
+    if not np.isfinite(norm) or norm < 1e-12:
+        raise InputError(f'{name} has no direction (norm {norm:g})')
+    return vector / norm
+
+
+def orthonormal_basis(first_axis):
+    """
+    Return a deterministic right-handed (3, 3) basis [e1 e2 e3] with e1 along first_axis.
+
+    e2 is built from the world axis least aligned with e1, so the same input always gives the
+    same basis (unlike a basis completed from a random matrix).
+    """
+    e1 = unit(first_axis, 'first_axis')
+    helper_axis = np.eye(3)[int(np.argmin(np.abs(e1)))]
+    e2 = unit(helper_axis - e1 * (e1 @ helper_axis))
+    e3 = np.cross(e1, e2)
+    return np.column_stack((e1, e2, e3))
+
+
+def quat_xyzw_to_matrix(quat_xyzw):
+    """Return the rotation matrix of a (possibly unnormalised) quaternion (x, y, z, w)."""
+    x, y, z, w = unit(quat_xyzw, 'quaternion')
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def matrix_to_quat_xyzw(rotation):
+    """Return the unit quaternion (x, y, z, w) with w >= 0 of a rotation matrix."""
+    r = np.asarray(rotation, dtype=float)
+    trace = np.trace(r)
+    if trace > 0.0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        quat = np.array([(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,
+                         (r[1, 0] - r[0, 1]) / s, 0.25 * s])
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(max(1.0 + r[i, i] - r[j, j] - r[k, k], 0.0))
+        quat = np.empty(4)
+        quat[i] = 0.25 * s
+        quat[j] = (r[j, i] + r[i, j]) / s
+        quat[k] = (r[k, i] + r[i, k]) / s
+        quat[3] = (r[k, j] - r[j, k]) / s
+    quat /= np.linalg.norm(quat)
+    return quat if quat[3] >= 0.0 else -quat
+
+
+def rotation_log(rotation):
+    """Return the rotation vector theta * mu (rad) of a rotation matrix (SO(3) logarithm)."""
+    r = np.asarray(rotation, dtype=float)
+    cos_theta = np.clip(0.5 * (np.trace(r) - 1.0), -1.0, 1.0)
+    theta = np.arccos(cos_theta)
+    axis_times_sin = 0.5 * np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    if theta < _SMALL_ANGLE:
+        return axis_times_sin
+    if np.pi - theta < 1e-6:
+        symmetric = 0.5 * (r + np.eye(3))
+        axis = symmetric[:, int(np.argmax(np.diag(symmetric)))]
+        axis = unit(axis)
+        if axis @ axis_times_sin < 0.0:
+            axis = -axis
+        return theta * axis
+    return theta / np.sin(theta) * axis_times_sin
+
+
+def rotation_exp(rotation_vector):
+    """Return the rotation matrix of a rotation vector theta * mu (SO(3) exponential)."""
+    rotation_vector = np.asarray(rotation_vector, dtype=float)
+    theta = np.linalg.norm(rotation_vector)
+    k = skew(rotation_vector)
+    if theta < _SMALL_ANGLE:
+        return np.eye(3) + k
+    return (np.eye(3) + np.sin(theta) / theta * k
+            + (1.0 - np.cos(theta)) / theta ** 2 * k @ k)
+
+
+def slerp_rotation(rotation_start, rotation_end, fraction):
+    """Return the geodesic interpolation between two rotation matrices, fraction in [0, 1]."""
+    delta = rotation_log(np.asarray(rotation_start).T @ rotation_end)
+    return rotation_start @ rotation_exp(fraction * delta)

@@ -1,0 +1,54 @@
+"""Checks shared by the typed config objects and the core entry points."""
+
+import math
+
+from dual_arm_control.core.exceptions import ConfigError, InputError
+import numpy as np
+
+
+def check_range(name, value, low=-math.inf, high=math.inf, unit='', low_open=False,
+                high_open=False):
+    """
+    Raise ConfigError unless low <= value <= high (or strict where *_open); return value.
+
+    The message names the field, the value, the allowed interval and the unit, so a refused
+    parameter explains itself.
+    """
+    unit_text = f' {unit}' if unit else ''
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f'{name} must be a number{unit_text}, got {value!r}') from None
+    if not math.isfinite(number):
+        raise ConfigError(f'{name} must be finite, got {value!r}')
+    too_low = number <= low if low_open else number < low
+    too_high = number >= high if high_open else number > high
+    if too_low or too_high:
+        left = '(' if low_open else '['
+        right = ')' if high_open else ']'
+        raise ConfigError(
+            f'{name} = {number:g}{unit_text} is outside {left}{low:g}, {high:g}{right}{unit_text}')
+    return value
+
+
+def check_vector(name, value, size, unit=''):
+    """Return value as a finite float array of the given size, or raise ConfigError."""
+    try:
+        array = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ConfigError(f'{name} must be {size} numbers, got {value!r}') from None
+    if array.size != size:
+        raise ConfigError(f'{name} must have {size} elements, got {array.size}')
+    if not np.all(np.isfinite(array)):
+        raise ConfigError(f'{name} must be finite, got {array.tolist()}')
+    return array
+
+
+def finite_array(name, value, shape=None):
+    """Return value as a float array, raising InputError if it is not finite or misshaped."""
+    array = np.asarray(value, dtype=float)
+    if shape is not None and array.shape != tuple(shape):
+        raise InputError(f'{name} must have shape {tuple(shape)}, got {array.shape}')
+    if not np.all(np.isfinite(array)):
+        raise InputError(f'{name} contains NaN or Inf')
+    return array

@@ -1,0 +1,28 @@
+"""Shared test fixtures: an isolated ROS environment per test and the source root."""
+
+import os
+from pathlib import Path
+import random
+import sys
+
+import pytest
+
+SOURCE_ROOT = Path(__file__).resolve().parent.parent
+
+os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+
+
+@pytest.fixture
+def source_root():
+    """Return the repository root."""
+    return SOURCE_ROOT
+
+
+@pytest.fixture
+def ros_domain(monkeypatch):
+    """Give the test (and every process it starts) its own ROS domain id."""
+    domain_id = str(random.SystemRandom().randint(1, 200))
+    monkeypatch.setenv('ROS_DOMAIN_ID', domain_id)
+    return domain_id
