@@ -7,6 +7,7 @@ topics are relative names resolved under the arm namespace (``/left``, ``/right`
 
 from dataclasses import dataclass
 
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
@@ -74,11 +75,14 @@ GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, SENSOR_QOS)
 GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, SENSOR_QOS,
                                 per_arm=True)
 GROUND_TRUTH_PAD_CONTACT = Topic('ground_truth/pad_contact', Bool, SENSOR_QOS, per_arm=True)
+# Tool-centre pose and twist in the world frame, from the simulator (evaluation only).
+GROUND_TRUTH_TOOL = Topic('ground_truth/tool', Odometry, SENSOR_QOS, per_arm=True)
+DIAGNOSTICS = Topic('/diagnostics', DiagnosticArray, SENSOR_QOS)
 
 ALL_TOPICS = (
     CLOCK, JOINT_STATES, TORQUE_COMMAND, FT_WRENCH, MOCAP_OBJECT_POSE, OBJECT_STATE, DS_COMMAND,
     CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, GROUND_TRUTH_OBJECT,
-    GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_PAD_CONTACT,
+    GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_PAD_CONTACT, GROUND_TRUTH_TOOL, DIAGNOSTICS,
 )
 
 # Services of the bridge (std_srvs/Trigger) and their names.
