@@ -2,16 +2,18 @@
 
 from glob import glob
 import os
+import runpy
 
 from setuptools import find_packages, setup
 
 PACKAGE_NAME = 'dual_arm_control'
 
-CONSOLE_SCRIPTS = [
-    'sim_bridge = sim_bridge.bridge_node:main',
-    'gravity_comp_controller = sim_bridge.gravity_comp_controller:main',
-    'dual_arm_bringup = dual_arm_control.bringup:main',
-]
+
+def console_scripts():
+    """Return the console scripts from the package's executable table (one source)."""
+    table = runpy.run_path(os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                        PACKAGE_NAME, 'executables.py'))
+    return table['console_scripts']()
 
 
 def share(subdir, pattern):
@@ -39,5 +41,5 @@ setup(
     description='Dual-arm grabbing with impact and tossing for two KUKA LBR iiwa arms.',
     license='Apache-2.0',
     tests_require=['pytest'],
-    entry_points={'console_scripts': CONSOLE_SCRIPTS},
+    entry_points={'console_scripts': console_scripts()},
 )

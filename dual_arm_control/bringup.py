@@ -1,0 +1,213 @@
+"""
+dual_arm_bringup: start the graph as separate processes, run one episode, write its results.
+
+Each node runs in its own process in an isolated ROS domain with its log in OUT/logs/. Ctrl-C or
+SIGTERM stops every child within a few seconds; a node that dies makes the launcher stop the rest
+and exit non-zero. With --scenario the episode ends when the bridge reaches the scenario's
+duration; metrics.json and plots are then written to --out.
+"""
+
+import argparse
+import ctypes
+import json
+import os
+from pathlib import Path
+import random
+import signal
+import subprocess
+import sys
+import time
+
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.executables import EXECUTABLES
+from dual_arm_control.graph import GRAPHS
+from dual_arm_control.resources import config_path
+
+STOP_GRACE_PERIOD = 4.0
+POLL_PERIOD = 0.1
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent():
+    """Ask the kernel to SIGTERM this child if the launcher dies, so nothing is orphaned."""
+    try:
+        ctypes.CDLL('libc.so.6', use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+
+
+def node_command(spec, ros_arguments):
+    """Return the argv that runs one node of the table with its ROS arguments."""
+    module, function = EXECUTABLES[spec.executable].split(':')
+    launcher_code = f'import sys; from {module} import {function}; sys.exit({function}())'
+    args = [sys.executable, '-c', launcher_code, '--ros-args', '-r', f'__node:={spec.name}']
+    if spec.namespace:
+        args += ['-r', f'__ns:={spec.namespace}']
+    for param_file in spec.param_files:
+        args += ['--params-file', str(config_path(param_file))]
+    for name, value in spec.parameters.items():
+        args += ['-p', f'{name}:={_ros_value(value)}']
+    return args + list(ros_arguments)
+
+
+def _ros_value(value):
+    """Format a parameter value for `-p name:=value` (YAML syntax)."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_ros_value(v) for v in value) + ']'
+    return str(value)
+
+
+class Launcher:
+    """Own the child processes of one graph run and stop them cleanly."""
+
+    def __init__(self, nodes, out_dir, domain_id, extra_param_file=None, node_parameters=None):
+        self._nodes = nodes
+        self._log_dir = Path(out_dir) / 'logs'
+        self._domain_id = domain_id
+        self._extra_param_file = extra_param_file
+        self._node_parameters = node_parameters or {}
+        self._processes = {}
+        self._log_files = []
+        self.stop_requested = False
+
+    def environment(self):
+        """Return the children's environment: isolated domain, localhost discovery."""
+        env = dict(os.environ)
+        env['ROS_DOMAIN_ID'] = str(self._domain_id)
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        env.setdefault('AMENT_PREFIX_PATH', sys.prefix)
+        env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+        env['PYTHONUNBUFFERED'] = '1'
+        return env
+
+    def start(self):
+        """Start every node of the table."""
+        self._log_dir.mkdir(parents=True, exist_ok=True)
+        env = self.environment()
+        for spec in self._nodes:
+            ros_arguments = []
+            if self._extra_param_file:
+                ros_arguments += ['--params-file', str(self._extra_param_file)]
+            for name, value in self._node_parameters.get(spec.name, {}).items():
+                ros_arguments += ['-p', f'{name}:={_ros_value(value)}']
+            log_file = open(self._log_dir / f'{spec.label}.log', 'w')
+            self._log_files.append(log_file)
+            self._processes[spec.label] = subprocess.Popen(
+                node_command(spec, ros_arguments), stdout=log_file, stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL, env=env, preexec_fn=_die_with_parent)
+
+    def poll(self):
+        """Return {label: exit code} of the children that have exited."""
+        return {label: process.returncode for label, process in self._processes.items()
+                if process.poll() is not None}
+
+    def stop(self):
+        """SIGINT every child, SIGKILL what is left after the grace period; return exit codes."""
+        for process in self._processes.values():
+            if process.poll() is None:
+                process.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + STOP_GRACE_PERIOD
+        for process in self._processes.values():
+            try:
+                process.wait(timeout=max(deadline - time.monotonic(), 0.01))
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        for log_file in self._log_files:
+            log_file.close()
+        return {label: process.returncode for label, process in self._processes.items()}
+
+    @property
+    def pids(self):
+        """Return the child process ids."""
+        return [process.pid for process in self._processes.values()]
+
+
+def parse_arguments(argv=None):
+    """Parse the launcher's command line."""
+    parser = argparse.ArgumentParser(prog='dual_arm_bringup', description=__doc__.split('\n')[1])
+    parser.add_argument('--scenario', type=Path,
+                        help='scenario YAML; runs one episode and exits (without: run until '
+                             'stopped)')
+    parser.add_argument('--out', type=Path, default=Path('runs/latest'),
+                        help='output directory for logs, metrics.json and plots')
+    parser.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
+    parser.add_argument('--params', type=Path,
+                        help='ROS parameter YAML (ros__parameters) applied to every node')
+    parser.add_argument('--graph', choices=sorted(GRAPHS), default='hold',
+                        help='which node table to start')
+    parser.add_argument('--domain-id', type=int,
+                        help='ROS_DOMAIN_ID for the graph (default: a random free-ish id)')
+    parser.add_argument('--timeout', type=float, default=600.0,
+                        help='wall-clock limit of an episode [s]')
+    return parser.parse_args(argv)
+
+
+def main(argv=None):
+    """Run the launcher; return the process exit code."""
+    args = parse_arguments(argv)
+    for path, what in ((args.scenario, 'scenario'), (args.params, 'parameter file')):
+        if path is not None and not path.is_file():
+            print(f'dual_arm_bringup: {what} {path} does not exist', file=sys.stderr)
+            return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    domain_id = args.domain_id if args.domain_id is not None else random.randint(1, 200)
+    bridge_parameters = {'mode': args.mode}
+    if args.scenario is not None:
+        bridge_parameters['scenario'] = str(args.scenario.resolve())
+        bridge_parameters['trajectory_log'] = str((args.out / 'trajectory.npz').resolve())
+    launcher = Launcher(GRAPHS[args.graph](), args.out, domain_id, args.params,
+                        {'sim_bridge': bridge_parameters})
+
+    def request_stop(signum, frame):
+        launcher.stop_requested = True
+
+    signal.signal(signal.SIGINT, request_stop)
+    signal.signal(signal.SIGTERM, request_stop)
+    print(f'dual_arm_bringup: ROS_DOMAIN_ID={domain_id}, logs in {args.out / "logs"}')
+    launcher.start()
+    started = time.monotonic()
+    status = 0
+    while True:
+        exited = launcher.poll()
+        if launcher.stop_requested:
+            print('dual_arm_bringup: stop requested, shutting the graph down')
+            status = 130 if args.scenario is None else 1
+            break
+        if 'sim_bridge' in exited and exited['sim_bridge'] == 0 and args.scenario is not None:
+            break
+        failed = {label: code for label, code in exited.items()}
+        if failed:
+            print(f'dual_arm_bringup: node(s) exited early: {failed}; stopping the graph',
+                  file=sys.stderr)
+            status = 3
+            break
+        if args.scenario is not None and time.monotonic() - started > args.timeout:
+            print(f'dual_arm_bringup: episode exceeded {args.timeout} s wall time',
+                  file=sys.stderr)
+            status = 4
+            break
+        time.sleep(POLL_PERIOD)
+    launcher.stop()
+    if status != 0 or args.scenario is None:
+        return status
+    return _write_results(args)
+
+
+def _write_results(args):
+    """Compute metrics and plots from the bridge's ground-truth log; return the exit code."""
+    from dual_arm_control.evaluation.episode import evaluate_episode
+    try:
+        metrics = evaluate_episode(args.scenario, args.out / 'trajectory.npz', args.out)
+    except (ConfigError, OSError, KeyError, ValueError) as error:
+        print(f'dual_arm_bringup: cannot evaluate the episode: {error}', file=sys.stderr)
+        return 5
+    (args.out / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    print(json.dumps(metrics, indent=2))
+    return 0 if metrics.get('success') else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

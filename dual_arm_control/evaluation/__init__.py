@@ -1,0 +1,1 @@
+"""Episode evaluation from simulator ground truth: trajectory logs, metrics, plots."""

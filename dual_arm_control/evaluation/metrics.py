@@ -1,0 +1,148 @@
+"""
+Episode metrics from simulator ground truth (never from the controller's beliefs).
+
+Times are sim time from the episode start [s], SI units throughout. Each function computes one
+quantity from arrays of a trajectory log (see trajectory.py) so it can be tested on synthetic
+trajectories.
+"""
+
+from dataclasses import dataclass
+
+from dual_arm_control.core.geometry import quat_xyzw_to_matrix
+from dual_arm_control.core.validation import check_range
+import numpy as np
+
+
+@dataclass(frozen=True)
+class EventCriteria:
+    """
+    Thresholds that turn contact flags and motion into events.
+
+    grasp_hold_time: both pads continuously in contact this long [s] = grasp established.
+    release_hold_time: both pads out of contact this long [s] = the object was released.
+    landing_clearance: object bottom within this height of the surface below [m] = landed.
+    home_tolerance: tool within this distance of its start position [m] = back home.
+    """
+
+    grasp_hold_time: float = 0.05
+    release_hold_time: float = 0.02
+    landing_clearance: float = 0.005
+    home_tolerance: float = 0.03
+
+    def __post_init__(self):
+        check_range('grasp_hold_time', self.grasp_hold_time, 0.0, 1.0, 's')
+        check_range('release_hold_time', self.release_hold_time, 0.0, 1.0, 's')
+        check_range('landing_clearance', self.landing_clearance, 0.0, 0.1, 'm')
+        check_range('home_tolerance', self.home_tolerance, 0.0, 0.5, 'm')
+
+
+def mechanical_energy(t, tau, dq):
+    """Return the time integral of |tau . dq| [J] over the log (trapezoidal rule)."""
+    power = np.abs(np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq)))
+    return float(np.trapezoid(power, np.asarray(t))) if len(power) > 1 else 0.0
+
+
+def first_true_index(flags, start=0):
+    """Return the first index >= start where flags is true, or None."""
+    indices = np.flatnonzero(np.asarray(flags, dtype=bool)[start:])
+    return int(indices[0]) + start if indices.size else None
+
+
+def first_sustained_index(t, flags, duration, start=0):
+    """Return the first index >= start that begins a run of true flags lasting >= duration."""
+    flags = np.asarray(flags, dtype=bool)
+    t = np.asarray(t)
+    index = start
+    while True:
+        begin = first_true_index(flags, index)
+        if begin is None:
+            return None
+        end = first_true_index(~flags, begin)
+        last = (end if end is not None else len(flags)) - 1
+        if t[last] - t[begin] >= duration:
+            return begin
+        if end is None:
+            return None
+        index = end
+
+
+def impact_speed(tool_velocity, contact_index, direction=None):
+    """
+    Return the tool speed [m/s] on the sample just before first contact.
+
+    With a unit direction, return the velocity component along it (the impact speed along the
+    desired impact direction) instead of the norm.
+    """
+    if contact_index is None or contact_index == 0:
+        return None
+    velocity = np.asarray(tool_velocity)[contact_index - 1]
+    if direction is None:
+        return float(np.linalg.norm(velocity))
+    return float(velocity @ (np.asarray(direction) / np.linalg.norm(direction)))
+
+
+def grasp_and_release_indices(t, left_contact, right_contact, criteria=EventCriteria()):
+    """Return (grasp index, release index): both pads on, then both pads off, sustained."""
+    both_on = np.asarray(left_contact, bool) & np.asarray(right_contact, bool)
+    grasp = first_sustained_index(t, both_on, criteria.grasp_hold_time)
+    if grasp is None:
+        return None, None
+    both_off = ~np.asarray(left_contact, bool) & ~np.asarray(right_contact, bool)
+    release = first_sustained_index(t, both_off, criteria.release_hold_time, start=grasp)
+    return grasp, release
+
+
+def max_pad_slip(tool_position, object_position, object_quat_xyzw, begin, end):
+    """
+    Return the largest displacement [m] of a pad relative to the object between begin and end.
+
+    The pad (tool centre) position is expressed in the object frame; slip is its distance from
+    where it was at begin.
+    """
+    if begin is None or end is None or end <= begin:
+        return None
+    tool_position = np.asarray(tool_position)
+    object_position = np.asarray(object_position)
+    reference = None
+    largest = 0.0
+    for index in range(begin, end):
+        rotation = quat_xyzw_to_matrix(object_quat_xyzw[index])
+        p_object_tool = rotation.T @ (tool_position[index] - object_position[index])
+        if reference is None:
+            reference = p_object_tool
+        largest = max(largest, float(np.linalg.norm(p_object_tool - reference)))
+    return largest
+
+
+def landing_index(t, object_position, start, half_height, surface_height,
+                  criteria=EventCriteria()):
+    """
+    Return the first index after start where the falling object's bottom reaches a surface.
+
+    surface_height(x, y) gives the height of the surface below a point [m].
+    """
+    if start is None:
+        return None
+    object_position = np.asarray(object_position)
+    for index in range(start, len(t)):
+        x, y, z = object_position[index]
+        if z - half_height <= surface_height(x, y) + criteria.landing_clearance:
+            return index
+    return None
+
+
+def return_home_index(t, tool_positions, start, criteria=EventCriteria()):
+    """Return the first index after start where every tool is back near its initial position."""
+    if start is None:
+        return None
+    distances = [np.linalg.norm(np.asarray(p) - np.asarray(p)[0], axis=1)
+                 for p in tool_positions]
+    near = np.all([d <= criteria.home_tolerance for d in distances], axis=0)
+    return first_true_index(near, start)
+
+
+def relative_velocity_error(velocity, desired_velocity):
+    """Return ||v - v_d|| / ||v_d|| [-]."""
+    desired_velocity = np.asarray(desired_velocity, dtype=float)
+    return float(np.linalg.norm(np.asarray(velocity) - desired_velocity)
+                 / np.linalg.norm(desired_velocity))

@@ -1,0 +1,17 @@
+"""
+Every executable of the package: name -> 'module:function'.
+
+The one table behind setup.py's console scripts (what `ros2 run dual_arm_control <name>`
+finds) and the launcher's node table. Pure Python with no imports so setup.py can read it.
+"""
+
+EXECUTABLES = {
+    'sim_bridge': 'sim_bridge.bridge_node:main',
+    'gravity_comp_controller': 'sim_bridge.gravity_comp_controller:main',
+    'dual_arm_bringup': 'dual_arm_control.bringup:main',
+}
+
+
+def console_scripts():
+    """Return the setuptools console_scripts entries."""
+    return [f'{name} = {target}' for name, target in EXECUTABLES.items()]

@@ -1,0 +1,114 @@
+"""Episode metrics on synthetic trajectories with known answers."""
+
+from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
+from dual_arm_control.evaluation import metrics
+import numpy as np
+import pytest
+
+DT = 0.002
+
+
+def test_energy_of_known_torque_velocity_profile():
+    t = np.arange(0.0, 1.0 + DT / 2, DT)
+    tau = np.zeros((t.size, 7))
+    dq = np.zeros((t.size, 7))
+    tau[:, 0] = 10.0
+    dq[:, 0] = np.sin(np.pi * t)
+    tau[:, 3] = -4.0
+    dq[:, 3] = -0.5
+    expected = 10.0 * 2.0 / np.pi + 2.0
+    assert metrics.mechanical_energy(t, tau, dq) == pytest.approx(expected, rel=1e-5)
+
+
+def test_energy_is_the_power_of_the_whole_arm():
+    t = np.arange(0.0, 1.0 + DT / 2, DT)
+    tau = np.zeros((t.size, 7))
+    dq = np.zeros((t.size, 7))
+    tau[:, 1], dq[:, 1] = 3.0, 1.0
+    tau[:, 2], dq[:, 2] = 3.0, -1.0
+    assert metrics.mechanical_energy(t, tau, dq) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_energy_counts_braking_as_spent():
+    t = np.arange(0.0, 1.0 + DT / 2, DT)
+    tau = np.full((t.size, 7), 2.0)
+    dq = np.full((t.size, 7), -1.0)
+    assert metrics.mechanical_energy(t, tau, dq) == pytest.approx(14.0, rel=1e-9)
+
+
+def test_contact_instants_and_impact_speed():
+    t = np.arange(0.0, 1.0, DT)
+    left = t >= 0.400
+    right = t >= 0.406
+    velocity = np.zeros((t.size, 3))
+    velocity[:, 1] = -0.5
+    velocity[t >= 0.4, 1] = -0.1
+    left_index = metrics.first_true_index(left)
+    right_index = metrics.first_true_index(right)
+    assert t[left_index] == pytest.approx(0.400)
+    assert t[right_index] - t[left_index] == pytest.approx(0.006)
+    assert metrics.impact_speed(velocity, left_index) == pytest.approx(0.5)
+    assert metrics.impact_speed(velocity, left_index, [0.0, -1.0, 0.0]) == pytest.approx(0.5)
+    assert metrics.impact_speed(velocity, left_index, [1.0, 0.0, 0.0]) == pytest.approx(0.0)
+    assert metrics.impact_speed(velocity, None) is None
+
+
+def test_grasp_needs_sustained_contact_and_release_needs_both_pads_off():
+    t = np.arange(0.0, 2.0, DT)
+    left = (t >= 0.3) & (t < 1.2)
+    right = ((t >= 0.3) & (t < 0.31)) | ((t >= 0.4) & (t < 1.25))
+    grasp, release = metrics.grasp_and_release_indices(t, left, right)
+    assert t[grasp] == pytest.approx(0.4)
+    assert t[release] == pytest.approx(1.25)
+
+
+def test_no_release_while_one_pad_still_holds():
+    t = np.arange(0.0, 2.0, DT)
+    left = t >= 0.3
+    right = (t >= 0.3) & (t < 1.0)
+    grasp, release = metrics.grasp_and_release_indices(t, left, right)
+    assert grasp is not None and release is None
+
+
+def test_slip_is_measured_in_the_object_frame():
+    t = np.arange(0.0, 1.0, DT)
+    n = t.size
+    object_position = np.column_stack((0.4 + 0.5 * t, np.zeros(n), 0.3 + 0.2 * t))
+    quats = np.array([matrix_to_quat_xyzw(rotation_exp([0.0, 0.0, 1.5 * s])) for s in t])
+    offset_object = np.array([0.0, 0.1, 0.0])
+    tool = np.array([object_position[i] + rotation_exp([0.0, 0.0, 1.5 * t[i]]) @ offset_object
+                     for i in range(n)])
+    assert metrics.max_pad_slip(tool, object_position, quats, 0, n) == pytest.approx(0.0,
+                                                                                    abs=1e-12)
+    slipping = tool.copy()
+    slipping[:, 2] -= 0.02 * t
+    slip = metrics.max_pad_slip(slipping, object_position, quats, 0, n)
+    assert slip == pytest.approx(0.02 * t[-1], rel=1e-9)
+
+
+def test_landing_on_the_surface_below():
+    t = np.arange(0.0, 1.0, DT)
+    v0 = np.array([1.0, 0.0, 1.0])
+    p0 = np.array([0.7, 0.0, 0.7])
+    position = p0 + np.outer(t, v0) + np.outer(0.5 * t ** 2, [0.0, 0.0, -9.81])
+
+    def table(x, y):
+        return 0.15 if x > 0.62 else 0.0
+
+    index = metrics.landing_index(t, position, 0, 0.1, table)
+    flight_time = (1.0 + np.sqrt(1.0 + 2.0 * 9.81 * (0.7 - 0.25 - 0.005))) / 9.81
+    assert t[index] == pytest.approx(flight_time, abs=DT)
+
+
+def test_return_home_and_velocity_error():
+    t = np.arange(0.0, 2.0, DT)
+    excursion = np.where(t < 1.0, 0.3 * np.sin(np.pi * t), 0.0)
+    tool = np.column_stack((excursion, np.zeros_like(t), np.zeros_like(t)))
+    index = metrics.return_home_index(t, [tool, tool], metrics.first_true_index(t > 0.5))
+    assert t[index] == pytest.approx(1.0 - np.arcsin(0.1) / np.pi, abs=DT)
+    assert metrics.relative_velocity_error([0.9, 0.0, 0.9], [1.0, 0.0, 1.0]) == pytest.approx(0.1)
+
+
+def test_criteria_refuse_out_of_range_values():
+    with pytest.raises(ValueError, match='grasp_hold_time'):
+        metrics.EventCriteria(grasp_hold_time=-1.0)
