@@ -178,9 +178,8 @@ def main(argv=None):
             break
         if 'sim_bridge' in exited and exited['sim_bridge'] == 0 and args.scenario is not None:
             break
-        failed = {label: code for label, code in exited.items()}
-        if failed:
-            print(f'dual_arm_bringup: node(s) exited early: {failed}; stopping the graph',
+        if exited:
+            print(f'dual_arm_bringup: node(s) exited early: {exited}; stopping the graph',
                   file=sys.stderr)
             status = 3
             break

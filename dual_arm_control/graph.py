@@ -21,7 +21,7 @@ class NodeSpec:
 
     @property
     def label(self):
-        """Return a unique, file-name-safe label (used for log files)."""
+        """Return a unique, file-name-safe label, used for log files."""
         return f'{self.namespace.strip("/")}_{self.name}' if self.namespace else self.name
 
 

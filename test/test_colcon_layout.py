@@ -6,10 +6,9 @@ import shutil
 import subprocess
 import sys
 
+from conftest import SOURCE_ROOT
 from dual_arm_control.executables import EXECUTABLES
 import pytest
-
-from conftest import SOURCE_ROOT
 
 PACKAGE = 'dual_arm_control'
 

@@ -78,8 +78,8 @@ def test_slip_is_measured_in_the_object_frame():
     offset_object = np.array([0.0, 0.1, 0.0])
     tool = np.array([object_position[i] + rotation_exp([0.0, 0.0, 1.5 * t[i]]) @ offset_object
                      for i in range(n)])
-    assert metrics.max_pad_slip(tool, object_position, quats, 0, n) == pytest.approx(0.0,
-                                                                                    abs=1e-12)
+    no_slip = metrics.max_pad_slip(tool, object_position, quats, 0, n)
+    assert no_slip == pytest.approx(0.0, abs=1e-12)
     slipping = tool.copy()
     slipping[:, 2] -= 0.02 * t
     slip = metrics.max_pad_slip(slipping, object_position, quats, 0, n)

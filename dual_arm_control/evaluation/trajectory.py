@@ -67,7 +67,7 @@ class TrajectoryRecorder:
             self._rows[name].append(np.array(value, dtype=float, copy=True))
 
     def arrays(self):
-        """Return the log as a dict of arrays (first axis = sample)."""
+        """Return the log as a dict of NumPy arrays, first axis = sample."""
         data = {name: np.array(rows) for name, rows in self._rows.items()}
         for arm in ARMS:
             data[f'{arm}_pad_contact'] = data[f'{arm}_pad_contact'].astype(bool)
