@@ -1,0 +1,389 @@
+"""
+Task phase machine of the grab-and-toss task (paper section II, Fig. 2; digest 1.3).
+
+A pure state machine: update(inputs, dt) advances the time in phase by dt seconds, evaluates the
+transition of the current phase on the new inputs and returns a PhaseMachineOutput. At most one
+transition happens per update, so transition times are quantised to one update period whatever
+the rate. Phases:
+
+    STANDBY --start--> REACH --both pads in contact--> CONTACT --settled--> MANIPULATE
+    MANIPULATE --release condition--> RELEASE --pads free or open-hands time--> RETRACT
+    RETRACT --both tools near standby--> STANDBY
+
+go_home from REACH jumps to RETRACT, from CONTACT/MANIPULATE to RELEASE (open the hands first);
+reset returns to STANDBY at once. Commands act on their rising edge, so a command held high for
+several updates acts once. All latches are cleared at every episode start (the reference's
+release flag was never reset, digest 10.5).
+"""
+
+from dataclasses import dataclass, field
+import enum
+
+from dual_arm_control.core.contact import ContactState
+from dual_arm_control.core.exceptions import ConfigError, InputError
+from dual_arm_control.core.validation import check_range, finite_array
+import numpy as np
+
+
+class Phase(enum.Enum):
+    """Phases of one grab episode."""
+
+    STANDBY = 'standby'
+    REACH = 'reach'
+    CONTACT = 'contact'
+    MANIPULATE = 'manipulate'
+    RELEASE = 'release'
+    RETRACT = 'retract'
+
+
+class Task(enum.Enum):
+    """What to do with the object once grasped."""
+
+    PICK_AND_TOSS = 'pick_and_toss'
+    PICK_AND_PLACE = 'pick_and_place'
+    PICK_AND_LIFT = 'pick_and_lift'
+    PLACE_TOSS = 'place_toss'
+    TOSS_TO_TARGET = 'toss_to_target'
+
+
+def task_from_name(task):
+    """Return the Task for a Task or its value ('pick_and_toss', ...); raise ConfigError."""
+    try:
+        return Task(task)
+    except ValueError:
+        choices = ', '.join(t.value for t in Task)
+        raise ConfigError(f'unknown task {task!r}; expected one of {choices}') from None
+
+
+@dataclass(frozen=True)
+class PhaseConfig:
+    """
+    Thresholds of the phase machine (SI units).
+
+    Fields:
+        contact_settle_time: s, >= 0; both pads must stay in contact this long in CONTACT.
+        single_contact_timeout: s, > 0; one pad in contact alone this long in REACH is reported.
+        release_tolerance: m, > 0; toss release when ||x_o - x_release|| <= this (paper 0.03 m).
+        release_plane_radius: m, > 0; crossing the release plane releases only within this
+            distance of the release path (the line through x_release along the release
+            velocity).
+        place_tolerance: m, > 0; place release when ||x_o - x_place|| <= this ...
+        place_speed: m/s, > 0; ... and ||v_o|| < place_speed.
+        lift_tolerance: m, > 0; the 'lift_reached' event fires within this of the lift pose.
+        grasp_loss_timeout: s, > 0; a pad out of contact this long in MANIPULATE releases.
+        open_hands_time: s, > 0; RELEASE ends after this even if a pad still reads contact.
+        home_tolerance: m, > 0; RETRACT ends when both tools are this close to standby.
+
+    """
+
+    contact_settle_time: float = 0.05
+    single_contact_timeout: float = 0.2
+    release_tolerance: float = 0.03
+    release_plane_radius: float = 0.10
+    place_tolerance: float = 0.03
+    place_speed: float = 0.1
+    lift_tolerance: float = 0.03
+    grasp_loss_timeout: float = 0.1
+    open_hands_time: float = 0.5
+    home_tolerance: float = 0.03
+
+    def __post_init__(self):
+        check_range('contact_settle_time', self.contact_settle_time, 0.0, unit='s')
+        for name, unit in (('single_contact_timeout', 's'), ('release_tolerance', 'm'),
+                           ('release_plane_radius', 'm'), ('place_tolerance', 'm'),
+                           ('place_speed', 'm/s'), ('lift_tolerance', 'm'),
+                           ('grasp_loss_timeout', 's'), ('open_hands_time', 's'),
+                           ('home_tolerance', 'm')):
+            check_range(name, getattr(self, name), 0.0, unit=unit, low_open=True)
+
+
+_VECTOR_FIELDS = ('p_world_tool_left', 'p_world_tool_right', 'p_world_object',
+                  'v_world_object', 'p_world_release', 'v_world_release', 'p_world_place',
+                  'p_world_lift', 'p_world_standby_left', 'p_world_standby_right')
+
+
+@dataclass(frozen=True)
+class PhaseInputs:
+    """
+    Everything the phase machine looks at in one update (world frame, SI units).
+
+    Fields:
+        p_world_tool_left, p_world_tool_right: (3,) m, tool origins.
+        p_world_object, v_world_object: (3,) m and m/s, object position and velocity.
+        contact_left, contact_right: ContactState of each arm (contact.py).
+        p_world_release, v_world_release: (3,) m and m/s, desired release state (toss tasks).
+        p_world_place: (3,) m, place position (PICK_AND_PLACE).
+        p_world_lift: (3,) m, lift position (PICK_AND_LIFT).
+        p_world_standby_left, p_world_standby_right: (3,) m, standby tool positions.
+        start_episode, go_home, reset: commands, acting on their rising edge.
+
+    """
+
+    p_world_tool_left: np.ndarray
+    p_world_tool_right: np.ndarray
+    p_world_object: np.ndarray
+    v_world_object: np.ndarray
+    contact_left: ContactState
+    contact_right: ContactState
+    p_world_release: np.ndarray
+    v_world_release: np.ndarray
+    p_world_place: np.ndarray
+    p_world_lift: np.ndarray
+    p_world_standby_left: np.ndarray
+    p_world_standby_right: np.ndarray
+    start_episode: bool = False
+    go_home: bool = False
+    reset: bool = False
+
+    def __post_init__(self):
+        for name in _VECTOR_FIELDS:
+            array = finite_array(name, getattr(self, name), (3,)).copy()
+            array.flags.writeable = False
+            object.__setattr__(self, name, array)
+        for name in ('contact_left', 'contact_right'):
+            if not isinstance(getattr(self, name), ContactState):
+                raise InputError(f'{name} must be a ContactState, got '
+                                 f'{type(getattr(self, name)).__name__}')
+
+
+@dataclass(frozen=True)
+class PhaseTransition:
+    """One phase change and why it happened."""
+
+    source: Phase
+    target: Phase
+    reason: str
+
+
+@dataclass(frozen=True)
+class PhaseMachineOutput:
+    """
+    Result of one update.
+
+    Fields:
+        phase: phase after the update.
+        task: task of the current episode.
+        time_in_phase: s, time since the phase was entered (0 on the update that entered it).
+        events: names of what happened in this update, e.g. 'contact_left', 'released'.
+        transition: the PhaseTransition of this update, or None.
+
+    """
+
+    phase: Phase
+    task: Task
+    time_in_phase: float
+    events: tuple = field(default_factory=tuple)
+    transition: PhaseTransition = None
+
+
+def _condition_duration(active, duration, dt):
+    """Return how long a condition has held (s): None if inactive, 0 when first seen."""
+    if not active:
+        return None
+    return 0.0 if duration is None else duration + dt
+
+
+class PhaseMachine:
+    """The task phase machine; state is explicit and only changes in update()."""
+
+    def __init__(self, config, task=Task.PICK_AND_TOSS):
+        self._config = config
+        self._pending_task = task_from_name(task)
+        self._task = self._pending_task
+        self._phase = Phase.STANDBY
+        self._time_in_phase = 0.0
+        self._previous_commands = {'start_episode': False, 'go_home': False, 'reset': False}
+        self._previous_contact = {'left': False, 'right': False}
+        self._clear_episode_latches()
+
+    @property
+    def phase(self):
+        """Return the current Phase."""
+        return self._phase
+
+    @property
+    def task(self):
+        """Return the Task of the current (or next, in STANDBY) episode."""
+        return self._task
+
+    def select_task(self, task):
+        """Choose the task; it applies at once in STANDBY, else from the next episode."""
+        self._pending_task = task_from_name(task)
+        if self._phase is Phase.STANDBY:
+            self._task = self._pending_task
+
+    def _clear_episode_latches(self):
+        self._single_contact_time = None
+        self._single_contact_reported = False
+        self._grasp_loss_time = None
+        self._release_side_previous = None
+        self._lift_reached = False
+
+    def update(self, inputs, dt):
+        """
+        Advance by dt seconds (> 0) on the given PhaseInputs; return a PhaseMachineOutput.
+
+        The time in phase is advanced first, then the transition of the current phase is
+        evaluated on the new inputs; a transition resets the time in phase to 0.
+        """
+        if not isinstance(inputs, PhaseInputs):
+            raise InputError(f'inputs must be PhaseInputs, got {type(inputs).__name__}')
+        dt = float(dt)
+        if not np.isfinite(dt) or dt <= 0.0:
+            raise InputError(f'dt = {dt:g} s must be finite and > 0')
+        self._time_in_phase += dt
+        commands = {name: bool(getattr(inputs, name)) and not self._previous_commands[name]
+                    for name in self._previous_commands}
+        self._previous_commands = {name: bool(getattr(inputs, name))
+                                   for name in self._previous_commands}
+        events = self._contact_events(inputs)
+        transition = self._command_transition(commands, events)
+        if transition is None:
+            transition = self._phase_transition(inputs, dt, events)
+        if transition is not None:
+            self._phase = transition.target
+            self._time_in_phase = 0.0
+        return PhaseMachineOutput(self._phase, self._task, self._time_in_phase, tuple(events),
+                                  transition)
+
+    def _contact_events(self, inputs):
+        events = []
+        for arm, state in (('left', inputs.contact_left), ('right', inputs.contact_right)):
+            if state.in_contact and not self._previous_contact[arm]:
+                events.append(f'contact_{arm}')
+            elif not state.in_contact and self._previous_contact[arm]:
+                events.append(f'contact_lost_{arm}')
+            self._previous_contact[arm] = state.in_contact
+        return events
+
+    def _command_transition(self, commands, events):
+        phase = self._phase
+        if commands['reset']:
+            events.append('reset')
+            self._clear_episode_latches()
+            self._task = self._pending_task
+            return PhaseTransition(phase, Phase.STANDBY, 'reset command')
+        if commands['go_home'] and phase is not Phase.STANDBY:
+            events.append('go_home')
+            if phase is Phase.REACH:
+                return PhaseTransition(phase, Phase.RETRACT, 'go_home command while reaching')
+            if phase in (Phase.CONTACT, Phase.MANIPULATE):
+                events.append('released')
+                return PhaseTransition(phase, Phase.RELEASE,
+                                       'go_home command while holding: open the hands first')
+            return None
+        if commands['start_episode'] and phase is Phase.STANDBY:
+            self._clear_episode_latches()
+            self._task = self._pending_task
+            events.append('episode_started')
+            return PhaseTransition(phase, Phase.REACH,
+                                   f'start_episode command, task {self._task.value}')
+        return None
+
+    def _phase_transition(self, inputs, dt, events):
+        handler = {
+            Phase.STANDBY: None,
+            Phase.REACH: self._from_reach,
+            Phase.CONTACT: self._from_contact,
+            Phase.MANIPULATE: self._from_manipulate,
+            Phase.RELEASE: self._from_release,
+            Phase.RETRACT: self._from_retract,
+        }[self._phase]
+        return None if handler is None else handler(inputs, dt, events)
+
+    def _from_reach(self, inputs, dt, events):
+        left = inputs.contact_left.in_contact
+        right = inputs.contact_right.in_contact
+        if left and right:
+            return PhaseTransition(Phase.REACH, Phase.CONTACT,
+                                   'both pads in contact (force and geometry)')
+        self._single_contact_time = _condition_duration(left != right,
+                                                        self._single_contact_time, dt)
+        if self._single_contact_time is None:
+            self._single_contact_reported = False
+        elif (self._single_contact_time >= self._config.single_contact_timeout - 1e-9
+              and not self._single_contact_reported):
+            self._single_contact_reported = True
+            events.append(f"single_contact_timeout_{'left' if left else 'right'}")
+        return None
+
+    def _from_contact(self, inputs, dt, events):
+        if not (inputs.contact_left.in_contact and inputs.contact_right.in_contact):
+            return PhaseTransition(Phase.CONTACT, Phase.REACH,
+                                   'contact lost before the grasp settled')
+        if self._time_in_phase >= self._config.contact_settle_time - 1e-9:
+            self._grasp_loss_time = None
+            self._release_side_previous = None
+            events.append('grasp_settled')
+            return PhaseTransition(Phase.CONTACT, Phase.MANIPULATE,
+                                   f'both pads in contact for {self._time_in_phase:.3f} s')
+        return None
+
+    def _from_manipulate(self, inputs, dt, events):
+        config = self._config
+        holding = inputs.contact_left.in_contact and inputs.contact_right.in_contact
+        self._grasp_loss_time = _condition_duration(not holding, self._grasp_loss_time, dt)
+        if self._grasp_loss_time is not None:
+            if self._grasp_loss_time >= config.grasp_loss_timeout - 1e-9:
+                events.extend(('grasp_lost', 'released'))
+                return PhaseTransition(Phase.MANIPULATE, Phase.RELEASE,
+                                       f'a pad out of contact for {self._grasp_loss_time:.3f} s')
+        if self._task is Task.PICK_AND_LIFT:
+            distance = np.linalg.norm(inputs.p_world_object - inputs.p_world_lift)
+            if distance <= config.lift_tolerance and not self._lift_reached:
+                self._lift_reached = True
+                events.append('lift_reached')
+            return None
+        reason = self._release_reason(inputs)
+        if reason is not None:
+            events.append('released')
+            return PhaseTransition(Phase.MANIPULATE, Phase.RELEASE, reason)
+        return None
+
+    def _release_reason(self, inputs):
+        """Return why the object must be released now (place or toss rule), or None."""
+        config = self._config
+        p_world_object = inputs.p_world_object
+        if self._task is Task.PICK_AND_PLACE:
+            distance = np.linalg.norm(p_world_object - inputs.p_world_place)
+            speed = np.linalg.norm(inputs.v_world_object)
+            if distance <= config.place_tolerance and speed < config.place_speed:
+                return (f'object {distance:.3f} m from the place position at '
+                        f'{speed:.3f} m/s')
+            return None
+        p_world_offset = p_world_object - inputs.p_world_release
+        distance = np.linalg.norm(p_world_offset)
+        if distance <= config.release_tolerance:
+            return f'object {distance:.3f} m from the release position'
+        release_speed = np.linalg.norm(inputs.v_world_release)
+        if release_speed < 1e-6:
+            return None
+        direction = inputs.v_world_release / release_speed
+        along = float(p_world_offset @ direction)
+        lateral = float(np.linalg.norm(p_world_offset - along * direction))
+        previous_along = self._release_side_previous
+        self._release_side_previous = along
+        if (previous_along is not None and previous_along < 0.0 <= along
+                and lateral <= config.release_plane_radius):
+            return f'object crossed the release plane {lateral:.3f} m off the release path'
+        return None
+
+    def _from_release(self, inputs, dt, events):
+        if not (inputs.contact_left.in_contact or inputs.contact_right.in_contact):
+            events.append('hands_open')
+            return PhaseTransition(Phase.RELEASE, Phase.RETRACT, 'both pads out of contact')
+        if self._time_in_phase >= self._config.open_hands_time - 1e-9:
+            events.append('hands_open')
+            return PhaseTransition(Phase.RELEASE, Phase.RETRACT,
+                                   f'hands opened for {self._time_in_phase:.3f} s')
+        return None
+
+    def _from_retract(self, inputs, dt, events):
+        tolerance = self._config.home_tolerance
+        left = np.linalg.norm(inputs.p_world_tool_left - inputs.p_world_standby_left)
+        right = np.linalg.norm(inputs.p_world_tool_right - inputs.p_world_standby_right)
+        if left <= tolerance and right <= tolerance:
+            events.append('home')
+            return PhaseTransition(Phase.RETRACT, Phase.STANDBY,
+                                   f'tools {left:.3f} m and {right:.3f} m from standby')
+        return None
