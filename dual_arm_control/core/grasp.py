@@ -1,0 +1,46 @@
+"""
+Grasp frames on the object's faces, from the object pose and size.
+
+The object's y axis is the squeeze axis. The left pad grasps the +y face, the right pad the -y
+face. Each grasp frame has z = contact normal pointing into the object, x = object x and
+y = z x x, and its origin at the face centre (plus an optional offset in the object frame).
+At contact the tool frame coincides with the grasp frame.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+_FACE_SIGN = {'left': 1.0, 'right': -1.0}
+
+
+@dataclass(frozen=True)
+class GraspFrame:
+    """A grasp frame in the world: origin p_world_grasp [m], rotation R_world_grasp."""
+
+    p_world_grasp: np.ndarray
+    R_world_grasp: np.ndarray
+
+    @property
+    def normal(self):
+        """Return the contact normal, the grasp z axis in the world, pointing into the object."""
+        return self.R_world_grasp[:, 2]
+
+
+def R_object_grasp(arm):
+    """Return the rotation of an arm's grasp frame in the object frame (columns x, y, z)."""
+    sign = _FACE_SIGN[arm]
+    z_axis = np.array([0.0, -sign, 0.0])
+    x_axis = np.array([1.0, 0.0, 0.0])
+    return np.column_stack((x_axis, np.cross(z_axis, x_axis), z_axis))
+
+
+def p_object_grasp(arm, size, offset=(0.0, 0.0, 0.0)):
+    """Return the grasp point of an arm in the object frame [m]: its face centre plus offset."""
+    return np.array([0.0, _FACE_SIGN[arm] * 0.5 * size[1], 0.0]) + np.asarray(offset, float)
+
+
+def grasp_frame(arm, p_world_object, R_world_object, size, offset=(0.0, 0.0, 0.0)):
+    """Return the world grasp frame of an arm for an object pose and box size [m]."""
+    p_world_grasp = p_world_object + R_world_object @ p_object_grasp(arm, size, offset)
+    return GraspFrame(p_world_grasp, R_world_object @ R_object_grasp(arm))
