@@ -1,0 +1,410 @@
+"""
+Object state estimation from motion-capture poses: a pose + twist Kalman filter.
+
+Position: per-axis constant-velocity Kalman filter driven by continuous white acceleration of
+power spectral density q = acceleration_noise**2 [m^2/s^3], so over an interval dt the process
+noise of one axis is q * [[dt^3/3, dt^2/2], [dt^2/2, dt]]. The three axes have identical models
+and are measured together, so they share one (2, 2) covariance. During a declared free flight
+(set_free_flight) gravity is a known input to the prediction.
+
+Orientation: error-state (multiplicative) Kalman filter on SO(3). The nominal state is the
+rotation R_world_object and the angular velocity omega (world frame, rad/s); the error state is
+(delta_theta, delta_omega) with R = exp([delta_theta]x) R_hat, i.e. a small rotation vector
+expressed in the world frame. Constant angular velocity gives the exact error transition
+delta_theta(t + dt) = Phi delta_theta + dt J_l(omega dt) delta_omega with Phi = exp([omega dt]x)
+and J_l the left Jacobian of SO(3); white angular acceleration of intensity
+angular_acceleration_noise**2 gives the same noise blocks as the position model. The
+orientation residual of a measured R_m is log(R_m R_hat^T). After each update the correction is
+injected into R_hat and the error covariance is kept as is (the reset Jacobian
+I - [delta_theta_hat]x / 2 differs from I by less than 1 % for corrections below 0.02 rad).
+
+Time: nothing reads a clock. Each measurement carries the stamp at which the mocap sampled it;
+update() applies it at that stamp, so the filter posterior lives at the last accepted sample
+time, and state(t) predicts forward to the query time t. This compensates the transport latency
+exactly as far as the motion model holds. A sample not newer than the posterior (out of order,
+duplicate) is refused and counted as stale: at 200 Hz with a steady latency reordering is rare,
+and refusing costs one sample, whereas re-filtering would need a history buffer.
+
+Robustness: position and orientation innovations are each tested against a chi-square gate
+(3 degrees of freedom) on the Mahalanobis distance; a sample failing either test is refused and
+counted. If samples keep failing the gate for rejection_reset_time, the motion really changed
+(e.g. the object was hit or moved by hand) and the track restarts at the newest sample. When no
+sample was accepted for lost_timeout the track is declared lost; the next valid sample restarts
+it wherever it is (a jump is accepted). Samples containing NaN or Inf, or a zero quaternion,
+are what mocap systems send for an untracked body: they are refused and counted as invalid (no
+exception); a wrongly shaped input is a programming error and raises InputError.
+"""
+
+from dataclasses import dataclass
+import enum
+import math
+
+from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.geometry import (matrix_to_quat_xyzw, quat_xyzw_to_matrix,
+                                            rotation_exp, rotation_log, skew)
+from dual_arm_control.core.validation import check_range
+import numpy as np
+
+_IDENTITY_2 = np.eye(2)
+_IDENTITY_3 = np.eye(3)
+_IDENTITY_6 = np.eye(6)
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """
+    Noise model, gating and timeouts of ObjectTracker.
+
+    Defaults: OptiTrack-class mocap at 200 Hz (0.5 mm, 0.005 rad); acceleration noise chosen so
+    that, at this sample rate, the velocity noise is about 0.03 m/s per axis while a steady
+    acceleration of 8.5 m/s^2 (the toss ramp) is followed with about 0.08 m/s lag.
+    """
+
+    position_noise: float = 0.0005
+    """Standard deviation of each measured position coordinate [m]."""
+    orientation_noise: float = 0.005
+    """Standard deviation of each component of the measured rotation error vector [rad]."""
+    acceleration_noise: float = 0.5
+    """Square root of the white linear acceleration PSD [m/s^2/sqrt(s)]."""
+    angular_acceleration_noise: float = 2.0
+    """Square root of the white angular acceleration PSD [rad/s^2/sqrt(s)]."""
+    initial_velocity_std: float = 1.0
+    """Prior standard deviation of each linear velocity component at track start [m/s]."""
+    initial_angular_velocity_std: float = 3.0
+    """Prior standard deviation of each angular velocity component at track start [rad/s]."""
+    gate_chi_square: float = 21.11
+    """Gate on the squared Mahalanobis distance (3 dof); 21.11 is the 0.9999 quantile [-]."""
+    rejection_reset_time: float = 0.05
+    """Duration of uninterrupted gate failures after which the track restarts [s]."""
+    lost_timeout: float = 0.5
+    """Time without an accepted sample after which the object is declared lost [s]."""
+    gravity: float = 9.81
+    """Gravitational acceleration applied along -z during a declared free flight [m/s^2]."""
+
+    def __post_init__(self):
+        check_range('position_noise', self.position_noise, 0.0, 1.0, 'm', low_open=True)
+        check_range('orientation_noise', self.orientation_noise, 0.0, 1.0, 'rad',
+                    low_open=True)
+        check_range('acceleration_noise', self.acceleration_noise, 0.0, 1e3,
+                    'm/s^2/sqrt(s)', low_open=True)
+        check_range('angular_acceleration_noise', self.angular_acceleration_noise, 0.0, 1e4,
+                    'rad/s^2/sqrt(s)', low_open=True)
+        check_range('initial_velocity_std', self.initial_velocity_std, 0.0, 100.0, 'm/s',
+                    low_open=True)
+        check_range('initial_angular_velocity_std', self.initial_angular_velocity_std, 0.0,
+                    1000.0, 'rad/s', low_open=True)
+        check_range('gate_chi_square', self.gate_chi_square, 0.0, math.inf, low_open=True)
+        check_range('rejection_reset_time', self.rejection_reset_time, 0.0, 60.0, 's',
+                    low_open=True)
+        check_range('lost_timeout', self.lost_timeout, 0.0, 60.0, 's', low_open=True)
+        check_range('gravity', self.gravity, 0.0, 100.0, 'm/s^2')
+
+
+class MeasurementOutcome(enum.Enum):
+    """
+    What update() did with a sample.
+
+    INITIALISED: the sample (re)started the track (first sample, after loss, or after gate
+    failures lasting rejection_reset_time); ACCEPTED: filtered in; REJECTED_OUTLIER: failed the
+    gate; REJECTED_STALE: not newer than the posterior; REJECTED_INVALID: NaN, Inf or zero
+    quaternion.
+    """
+
+    INITIALISED = 'initialised'
+    ACCEPTED = 'accepted'
+    REJECTED_OUTLIER = 'rejected_outlier'
+    REJECTED_STALE = 'rejected_stale'
+    REJECTED_INVALID = 'rejected_invalid'
+
+
+@dataclass(frozen=True)
+class ObjectEstimate:
+    """
+    Estimated object state at `stamp`, world frame.
+
+    Covariances are (3, 3); orientation_covariance is that of the world-frame rotation error
+    vector [rad^2]. When lost, position and orientation are the last posterior values (not
+    extrapolated), velocities are zero and the covariances are those predicted to `stamp`.
+    """
+
+    stamp: float
+    position: np.ndarray
+    quat_xyzw: np.ndarray
+    linear_velocity: np.ndarray
+    angular_velocity: np.ndarray
+    position_covariance: np.ndarray
+    orientation_covariance: np.ndarray
+    linear_velocity_covariance: np.ndarray
+    angular_velocity_covariance: np.ndarray
+    lost: bool
+    free_flight: bool
+    last_sample_stamp: float
+    samples_used: int
+    samples_rejected_outlier: int
+    samples_rejected_stale: int
+    samples_rejected_invalid: int
+    track_restarts: int
+
+    @property
+    def samples_rejected(self):
+        """Return the number of refused samples of every kind."""
+        return (self.samples_rejected_outlier + self.samples_rejected_stale
+                + self.samples_rejected_invalid)
+
+
+def white_acceleration_noise(intensity, dt):
+    """
+    Return the (2, 2) process noise of one constant-velocity axis over dt seconds.
+
+    Continuous white acceleration of PSD intensity [unit^2/s^3] integrated over |dt|:
+    intensity * [[dt^3/3, dt^2/2], [dt^2/2, dt]].
+    """
+    dt = abs(dt)
+    return intensity * np.array([[dt ** 3 / 3.0, dt ** 2 / 2.0], [dt ** 2 / 2.0, dt]])
+
+
+def left_jacobian_so3(rotation_vector):
+    """Return the (3, 3) left Jacobian J_l(phi) = sum_k [phi]x^k / (k + 1)! of SO(3)."""
+    theta = float(np.linalg.norm(rotation_vector))
+    k = skew(rotation_vector)
+    if theta < 1e-6:
+        return np.eye(3) + 0.5 * k + k @ k / 6.0
+    return (np.eye(3) + (1.0 - math.cos(theta)) / theta ** 2 * k
+            + (theta - math.sin(theta)) / theta ** 3 * k @ k)
+
+
+class ObjectTracker:
+    """
+    Pose and twist Kalman filter for one rigid object seen by motion capture.
+
+    Feed samples with update(stamp, position, quat_xyzw) as they arrive (one not newer than the
+    last accepted sample is refused as stale); query the estimate at any time with state(t),
+    which predicts from the last accepted sample. Times are seconds on one clock (ROS time).
+    """
+
+    def __init__(self, config=None):
+        self.config = config or TrackerConfig()
+        self._q_position = self.config.acceleration_noise ** 2
+        self._q_orientation = self.config.angular_acceleration_noise ** 2
+        self._r_position = self.config.position_noise ** 2
+        self._r_orientation = self.config.orientation_noise ** 2
+        self._posterior_stamp = None
+        self._first_rejection_stamp = None
+        self._position = np.zeros(3)
+        self._velocity = np.zeros(3)
+        self._covariance_position = np.zeros((2, 2))
+        self._R_world_object = np.eye(3)
+        self._angular_velocity = np.zeros(3)
+        self._covariance_orientation = np.zeros((6, 6))
+        self._flight_start = math.inf
+        self._flight_end = math.inf
+        self._samples_used = 0
+        self._samples_rejected_outlier = 0
+        self._samples_rejected_stale = 0
+        self._samples_rejected_invalid = 0
+        self._track_restarts = 0
+
+    @property
+    def initialised(self):
+        """Return True once a sample has been accepted."""
+        return self._posterior_stamp is not None
+
+    def set_free_flight(self, stamp, in_flight):
+        """
+        Declare that from `stamp` [s] on the object flies freely (in_flight) or not any more.
+
+        In free flight the prediction adds gravity (-gravity along world z) to the constant
+        velocity model, which removes the lag a constant-velocity model has on a ballistic arc.
+        """
+        stamp = float(stamp)
+        if not math.isfinite(stamp):
+            raise InputError(f'free-flight stamp must be finite, got {stamp}')
+        if in_flight:
+            self._flight_start, self._flight_end = stamp, math.inf
+        elif self._flight_start <= stamp:
+            self._flight_end = min(self._flight_end, stamp)
+
+    def update(self, stamp, position, quat_xyzw):
+        """
+        Apply one mocap sample taken at `stamp` [s]; return a MeasurementOutcome.
+
+        position: (3,) world [m]; quat_xyzw: (4,) R_world_object, any norm > 0.
+        """
+        position = np.asarray(position, dtype=float)
+        quat_xyzw = np.asarray(quat_xyzw, dtype=float)
+        if position.shape != (3,) or quat_xyzw.shape != (4,):
+            raise InputError(f'position must have shape (3,) and quat_xyzw (4,), got '
+                             f'{position.shape} and {quat_xyzw.shape}')
+        stamp = float(stamp)
+        quat_norm = float(np.linalg.norm(quat_xyzw))
+        if (not math.isfinite(stamp) or not np.all(np.isfinite(position))
+                or not math.isfinite(quat_norm) or quat_norm < 1e-6):
+            self._samples_rejected_invalid += 1
+            return MeasurementOutcome.REJECTED_INVALID
+        R_measured = quat_xyzw_to_matrix(quat_xyzw / quat_norm)
+        if self._posterior_stamp is None or self._is_lost(stamp):
+            return self._start_track(stamp, position, R_measured)
+        if stamp <= self._posterior_stamp:
+            self._samples_rejected_stale += 1
+            return MeasurementOutcome.REJECTED_STALE
+        prior = self._prediction(stamp)
+        position_residual = position - prior['position']
+        position_innovation_variance = prior['covariance_position'][0, 0] + self._r_position
+        orientation_residual = rotation_log(R_measured @ prior['R_world_object'].T)
+        P = prior['covariance_orientation']
+        orientation_innovation = P[:3, :3] + self._r_orientation * _IDENTITY_3
+        orientation_distance = orientation_residual @ np.linalg.solve(orientation_innovation,
+                                                                      orientation_residual)
+        position_distance = position_residual @ position_residual / position_innovation_variance
+        gate = self.config.gate_chi_square
+        if position_distance > gate or orientation_distance > gate:
+            if self._first_rejection_stamp is None:
+                self._first_rejection_stamp = stamp
+            if stamp - self._first_rejection_stamp >= self.config.rejection_reset_time:
+                return self._start_track(stamp, position, R_measured)
+            self._samples_rejected_outlier += 1
+            return MeasurementOutcome.REJECTED_OUTLIER
+        self._first_rejection_stamp = None
+
+        P2 = prior['covariance_position']
+        gain_position = P2[:, 0] / position_innovation_variance
+        self._position = prior['position'] + gain_position[0] * position_residual
+        self._velocity = prior['velocity'] + gain_position[1] * position_residual
+        correction = _IDENTITY_2 - np.outer(gain_position, [1.0, 0.0])
+        self._covariance_position = (correction @ P2 @ correction.T + self._r_position
+                                     * np.outer(gain_position, gain_position))
+
+        gain_orientation = np.linalg.solve(orientation_innovation, P[:3, :]).T
+        error_state = gain_orientation @ orientation_residual
+        self._R_world_object = rotation_exp(error_state[:3]) @ prior['R_world_object']
+        self._angular_velocity = prior['angular_velocity'] + error_state[3:]
+        correction = _IDENTITY_6.copy()
+        correction[:, :3] -= gain_orientation
+        covariance = (correction @ P @ correction.T
+                      + self._r_orientation * gain_orientation @ gain_orientation.T)
+        self._covariance_orientation = 0.5 * (covariance + covariance.T)
+
+        self._posterior_stamp = stamp
+        self._samples_used += 1
+        return MeasurementOutcome.ACCEPTED
+
+    def state(self, t):
+        """
+        Return the ObjectEstimate predicted to time t [s], or None before the first sample.
+
+        Does not change the filter. A query older than the newest accepted sample is
+        extrapolated backwards with the same model.
+        """
+        if self._posterior_stamp is None:
+            return None
+        t = float(t)
+        if not math.isfinite(t):
+            raise InputError(f'query time must be finite, got {t}')
+        prior = self._prediction(t)
+        P2 = prior['covariance_position']
+        P = prior['covariance_orientation']
+        lost = self._is_lost(t)
+        if lost:
+            position, R_world_object = self._position, self._R_world_object
+            linear_velocity, angular_velocity = np.zeros(3), np.zeros(3)
+        else:
+            position, R_world_object = prior['position'], prior['R_world_object']
+            linear_velocity, angular_velocity = prior['velocity'], prior['angular_velocity']
+        return ObjectEstimate(
+            stamp=t,
+            position=position.copy(),
+            quat_xyzw=matrix_to_quat_xyzw(R_world_object),
+            linear_velocity=linear_velocity.copy(),
+            angular_velocity=angular_velocity.copy(),
+            position_covariance=P2[0, 0] * np.eye(3),
+            orientation_covariance=P[:3, :3].copy(),
+            linear_velocity_covariance=P2[1, 1] * np.eye(3),
+            angular_velocity_covariance=P[3:, 3:].copy(),
+            lost=lost,
+            free_flight=self._flight_start <= t < self._flight_end,
+            last_sample_stamp=self._posterior_stamp,
+            samples_used=self._samples_used,
+            samples_rejected_outlier=self._samples_rejected_outlier,
+            samples_rejected_stale=self._samples_rejected_stale,
+            samples_rejected_invalid=self._samples_rejected_invalid,
+            track_restarts=self._track_restarts,
+        )
+
+    def _is_lost(self, t):
+        return t - self._posterior_stamp > self.config.lost_timeout
+
+    def _start_track(self, stamp, position, R_measured):
+        if self._posterior_stamp is not None:
+            self._track_restarts += 1
+        self._position = position.copy()
+        self._velocity = np.zeros(3)
+        self._covariance_position = np.diag(
+            [self._r_position, self.config.initial_velocity_std ** 2])
+        self._R_world_object = R_measured
+        self._angular_velocity = np.zeros(3)
+        self._covariance_orientation = np.diag(
+            [self._r_orientation] * 3 + [self.config.initial_angular_velocity_std ** 2] * 3)
+        self._posterior_stamp = stamp
+        self._first_rejection_stamp = None
+        self._samples_used += 1
+        return MeasurementOutcome.INITIALISED
+
+    def _prediction(self, t):
+        """Return the prior mean and covariances propagated from the posterior to time t."""
+        dt = t - self._posterior_stamp
+        gravity_displacement, gravity_velocity = self._gravity_effect(self._posterior_stamp, t)
+        position = self._position + self._velocity * dt
+        velocity = self._velocity.copy()
+        position[2] += gravity_displacement
+        velocity[2] += gravity_velocity
+        transition = np.array([[1.0, dt], [0.0, 1.0]])
+        covariance_position = (transition @ self._covariance_position @ transition.T
+                               + white_acceleration_noise(self._q_position, dt))
+
+        rotation_increment = self._angular_velocity * dt
+        rotation_transition = rotation_exp(rotation_increment)
+        F = _IDENTITY_6.copy()
+        F[:3, :3] = rotation_transition
+        F[:3, 3:] = dt * left_jacobian_so3(rotation_increment)
+        noise = white_acceleration_noise(self._q_orientation, dt)
+        covariance_orientation = F @ self._covariance_orientation @ F.T
+        for row in range(2):
+            for column in range(2):
+                covariance_orientation[3 * row:3 * row + 3, 3 * column:3 * column + 3] += (
+                    noise[row, column] * _IDENTITY_3)
+        return {
+            'position': position,
+            'velocity': velocity,
+            'covariance_position': covariance_position,
+            'R_world_object': rotation_transition @ self._R_world_object,
+            'angular_velocity': self._angular_velocity.copy(),
+            'covariance_orientation': covariance_orientation,
+        }
+
+    def _gravity_effect(self, t0, t1):
+        """
+        Return (dz, dvz) added by gravity between t0 and t1 for the declared flight interval.
+
+        With u(s) = time spent in flight between flight start and s and G(s) its integral,
+        dvz = -g (u(t1) - u(t0)) and dz = -g (G(t1) - G(t0) - u(t0) (t1 - t0)).
+        """
+        start, end = self._flight_start, self._flight_end
+        if not math.isfinite(start):
+            return 0.0, 0.0
+
+        def time_in_flight(s):
+            return min(max(s, start), end) - start
+
+        def integral_of_time_in_flight(s):
+            if s <= start:
+                return 0.0
+            if s <= end:
+                return 0.5 * (s - start) ** 2
+            return 0.5 * (end - start) ** 2 + (end - start) * (s - end)
+
+        g = self.config.gravity
+        u0 = time_in_flight(t0)
+        velocity_change = -g * (time_in_flight(t1) - u0)
+        displacement = -g * (integral_of_time_in_flight(t1) - integral_of_time_in_flight(t0)
+                             - u0 * (t1 - t0))
+        return displacement, velocity_change
