@@ -1,0 +1,68 @@
+"""
+Time one tick of the coordinated reach-with-impact DS for both arms.
+
+One tick = impact_ds_velocity (nominal field, activations, eq. 6 target field, modulation)
++ grasp_distance + reach_speed + boosted_coordinated_velocity, evaluated along a reach
+trajectory of the paper geometry so that every activation regime is visited. Target: a median
+at or below 150 us on the project machine. Run: python -m dual_arm_control.benchmarks.ds_bench
+"""
+
+import time
+
+from dual_arm_control.core.cooperative import CoordinationConfig
+from dual_arm_control.core.impact import (
+    grasp_distance, impact_direction, impact_ds_velocity, impact_geometry, ImpactConfig,
+    max_impact_tilt)
+from dual_arm_control.core.speed_shaping import (
+    boosted_coordinated_velocity, reach_speed, SpeedProfileConfig)
+import numpy as np
+
+OBJECT_POSITION = np.array([0.41, 0.0, 0.32])
+GRASP_POINTS = np.array([OBJECT_POSITION + [0.0, 0.1, 0.0], OBJECT_POSITION - [0.0, 0.1, 0.0]])
+CONTACT_NORMALS = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+OBJECT_VELOCITY = np.array([0.7603, 0.0, 0.3801])
+START = np.array([0.35, 0.31, 0.80, 0.35, -0.31, 0.80])
+
+
+def ds_tick(x, geometry, impact, speed_profile):
+    """Return the boosted coordinated velocity (6,) [m/s] at x (6,) [m]: one DS tick."""
+    output = impact_ds_velocity(x, geometry)
+    speed = reach_speed(grasp_distance(x, geometry), impact.impact_speed, speed_profile)
+    return boosted_coordinated_velocity(output.velocity, speed)
+
+
+def bench_ds_tick(ticks=2000, dt=0.005):
+    """
+    Return (median, p99) [us] of ds_tick over a reach of `ticks` steps of dt [s].
+
+    The state is integrated with the DS output, so the ticks span far reach, transitory
+    attractor and impact run (the run restarts from START when both pads pass contact).
+    """
+    coordination, impact = CoordinationConfig(), ImpactConfig()
+    speed_profile = SpeedProfileConfig()
+    tilt = max_impact_tilt(impact)
+    directions = np.array([impact_direction(normal, OBJECT_VELOCITY, tilt)
+                           for normal in CONTACT_NORMALS])
+    geometry = impact_geometry(GRASP_POINTS, directions, coordination, impact)
+    x = START.copy()
+    durations = np.empty(ticks)
+    for index in range(ticks):
+        begin = time.perf_counter()
+        velocity = ds_tick(x, geometry, impact, speed_profile)
+        durations[index] = time.perf_counter() - begin
+        x = x + dt * velocity
+        if np.all(np.einsum('ij,ij->i', CONTACT_NORMALS, x.reshape(2, 3) - GRASP_POINTS) > 0.0):
+            x = START.copy()
+    micros = durations * 1e6
+    return float(np.median(micros)), float(np.percentile(micros, 99))
+
+
+def main():
+    """Print median and p99 of one DS tick for both arms."""
+    median, p99 = bench_ds_tick()
+    print(f'DS tick (modulation + impact + speed shaping, both arms): '
+          f'median {median:.1f} us, p99 {p99:.1f} us (target median <= 150 us)')
+
+
+if __name__ == '__main__':
+    main()

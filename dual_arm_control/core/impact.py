@@ -1,0 +1,233 @@
+"""
+Coordinated reaching with impact: desired impact velocity and the eq. 6 attractor.
+
+Stacked arm vectors are x = [x_L; x_R] (6,) in the world frame [m]; per-arm arrays are (2, 3)
+with row 0 left and row 1 right. The impact DS is eq. 1 with the nominal field eq. 4 aimed at
+the transitory attractors and the per-direction target fields of Proposition 2.
+"""
+
+from dataclasses import dataclass
+import math
+from typing import NamedTuple
+
+from dual_arm_control.core.cooperative import (
+    cooperative_transform, cooperative_transform_inverse, coordinated_gain_matrix,
+    impact_frame_gain_matrix)
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.geometry import unit
+from dual_arm_control.core.modulation import (
+    activation_distances, activations, modulated_velocity, modulation_bases,
+    ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
+from dual_arm_control.core.validation import check_range, finite_array
+import numpy as np
+
+_PARALLEL_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class ImpactConfig:
+    """
+    Desired impact and its modulation region.
+
+    impact_speed: speed of each pad along its impact direction at contact [m/s], in (0, 2].
+        Default 0.45 m/s, the reference's desVimp (paper: about 0.5 m/s).
+    max_tilt_deg: largest tilt of the impact direction away from the contact normal toward the
+        object's desired motion [deg], in [0, 89]. Default 40 (reference max_friction_angle).
+    synchronise: True keeps the attraction of the relative coordinate along e1 while the
+        desired velocity is applied (see impact_target_field); False is eq. 6 as printed,
+        which switches that attraction off as gamma -> 1.
+    region: modulation region around each grasp point.
+    """
+
+    impact_speed: float = 0.45
+    max_tilt_deg: float = 40.0
+    synchronise: bool = True
+    region: ModulationRegionConfig = ModulationRegionConfig()
+
+    def __post_init__(self):
+        check_range('impact_speed', self.impact_speed, 0.0, 2.0, 'm/s', low_open=True)
+        check_range('max_tilt_deg', self.max_tilt_deg, 0.0, 89.0, 'deg')
+        if not isinstance(self.synchronise, (bool, np.bool_)):
+            raise ConfigError(f'synchronise must be true or false, got {self.synchronise!r}')
+        if not isinstance(self.region, ModulationRegionConfig):
+            raise ConfigError(f'region must be a ModulationRegionConfig, got {self.region!r}')
+
+
+class ImpactGeometry(NamedTuple):
+    """Constant data of one coordinated impact, built by impact_geometry."""
+
+    desired_positions: np.ndarray
+    """x_d (2, 3) [m], the grasp points."""
+    bases: np.ndarray
+    """E^L, E^R (2, 3, 3), e1 along the impact direction."""
+    transitory: np.ndarray
+    """x_t (6,) [m], stacked transitory attractors."""
+    desired_velocity: np.ndarray
+    """x_dot_d (6,) [m/s], stacked desired impact velocities."""
+    gain_matrix: np.ndarray
+    """E A' E^T (6, 6) [1/s], the coordinated gain in the impact frames."""
+    relative_projector: np.ndarray
+    """P_rel (6, 6), zero unless synchronising coordinated arms."""
+    region: ModulationRegionConfig
+    shared: bool
+    """Activations shared by both arms (coordinated) or per arm (decoupled)."""
+
+
+class ImpactDSOutput(NamedTuple):
+    """One evaluation of the impact DS."""
+
+    velocity: np.ndarray
+    """x_dot (6,) [m/s], eq. 1."""
+    nominal: np.ndarray
+    """f_n (6,) [m/s], eq. 4 toward the transitory attractors."""
+    activation: RegionActivation
+
+
+def max_impact_tilt(config, friction=None):
+    """Return the largest impact tilt [rad]: max_tilt_deg, or atan(friction) if smaller."""
+    tilt = math.radians(config.max_tilt_deg)
+    if friction is not None:
+        check_range('friction', friction, 0.0, math.inf, low_open=True)
+        tilt = min(tilt, math.atan(friction))
+    return tilt
+
+
+def impact_direction(contact_normal, object_desired_velocity, max_tilt):
+    """
+    Return the unit impact direction (3,): the contact normal tilted toward the object motion.
+
+    contact_normal (3,) points into the object; object_desired_velocity (3,) [m/s] is the
+    velocity the object should take after the grasp (e.g. the toss field at the object). The
+    result lies in the plane of the two vectors, tilted from the normal by the angle between
+    them, clamped to max_tilt [rad] (the friction cone). Without a tangential component the
+    normal itself is returned.
+    """
+    normal = unit(contact_normal, 'contact_normal')
+    velocity = finite_array('object_desired_velocity', object_desired_velocity, (3,))
+    along = velocity @ normal
+    tangential = velocity - along * normal
+    tangential_norm = np.linalg.norm(tangential)
+    if tangential_norm <= _PARALLEL_TOLERANCE * max(np.linalg.norm(velocity), 1e-12):
+        return normal
+    tilt = min(math.atan2(tangential_norm, along), max_tilt)
+    return math.cos(tilt) * normal + math.sin(tilt) / tangential_norm * tangential
+
+
+def desired_impact_velocity(directions, impact_speed):
+    """Return x_dot_d = impact_speed * direction per arm (2, 3) [m/s]."""
+    return impact_speed * np.asarray(directions, dtype=float)
+
+
+def relative_projector(bases):
+    """
+    Return P_rel = E T_b^-1 diag(0, I3) T_b E^T (6, 6).
+
+    Projects stacked vectors onto the relative coordinate of the arms' local positions in the
+    bases E^h: the part of the motion that makes one arm lead the other.
+    """
+    rotation = np.zeros((6, 6))
+    rotation[:3, :3] = bases[0]
+    rotation[3:, 3:] = bases[1]
+    selector = np.diag(np.repeat([0.0, 1.0], 3))
+    local = cooperative_transform_inverse() @ selector @ cooperative_transform()
+    return rotation @ local @ rotation.T
+
+
+def impact_target_field(nominal, desired_velocity, gamma, projector):
+    """
+    Return f_m1 = A'(x - x_*) (6,) [m/s] for the e1 directions, x_* from impact_attractor.
+
+    nominal: f_n = A'(x - x_t) (6,). gamma (2,) per arm (equal entries for coordinated arms).
+    With projector = 0 this is eq. 6 as printed: f_m1 = (1 - gamma) f_n + gamma x_dot_d.
+    With projector = P_rel the relative part of f_n is kept:
+    f_m1 = (1 - gamma) f_n + gamma (x_dot_d + P_rel f_n). The desired velocities are equal in
+    the impact frames, so P_rel x_dot_d = 0 and the absolute motion along e1 still gets exactly
+    x_dot_d, but an arm that leads the other along its e1 is slowed and the other sped up at
+    the relative rate. Eq. 6 as printed leaves that difference uncorrected once gamma = 1.
+    """
+    gamma6 = np.repeat(gamma, 3)
+    return nominal + gamma6 * (desired_velocity - nominal + projector @ nominal)
+
+
+def impact_attractor(x, transitory, gain_matrix, desired_velocity, gamma, projector=None):
+    """
+    Return the attractor x_* (6,) [m] of the e1 directions (eq. 6).
+
+    x_* = (1 - gamma) x_t + gamma (x - A'^-1 x_dot_d) - gamma P_rel (x - x_t); the last term
+    is absent (projector None or 0) in eq. 6 as printed, see impact_target_field. The e2, e3
+    directions keep x_* = x_t. gamma (2,) per arm; with unequal entries (decoupled arms, A'
+    block diagonal) the blend is applied arm by arm.
+    """
+    x = np.asarray(x, dtype=float)
+    projector = np.zeros((6, 6)) if projector is None else projector
+    nominal = gain_matrix @ (x - transitory)
+    field = impact_target_field(nominal, desired_velocity, gamma, projector)
+    return x - np.linalg.solve(gain_matrix, field)
+
+
+def impact_target_fields(x, transitory, gain_matrix, desired_velocity, gamma, projector=None):
+    """
+    Return the per-direction target fields f_mi (2, 3, 3) [m/s] of Proposition 2.
+
+    targets[h, 0] = f_m1 = A'(x - x_*) with x_* from eq. 6 (impact_attractor);
+    targets[h, 1] = targets[h, 2] = A'(x - x_t).
+    """
+    x = np.asarray(x, dtype=float)
+    attractor = impact_attractor(x, transitory, gain_matrix, desired_velocity, gamma, projector)
+    first = (gain_matrix @ (x - attractor)).reshape(2, 3)
+    other = (gain_matrix @ (x - transitory)).reshape(2, 3)
+    return np.stack((first, other, other), axis=1)
+
+
+def impact_geometry(grasp_points, impact_directions, coordination, impact):
+    """
+    Return the ImpactGeometry of a grasp.
+
+    grasp_points (2, 3) [m]: contact points x_d (left, right), world frame.
+    impact_directions (2, 3): unit impact directions e1 (e.g. from impact_direction).
+    coordination: CoordinationConfig; impact: ImpactConfig.
+    """
+    grasp_points = finite_array('grasp_points', grasp_points, (2, 3))
+    directions = finite_array('impact_directions', impact_directions, (2, 3))
+    bases = modulation_bases(directions)
+    rho = impact.region.transitory_distance
+    gain = impact_frame_gain_matrix(coordinated_gain_matrix(coordination), bases)
+    synchronised = coordination.coordinated and impact.synchronise
+    projector = relative_projector(bases) if synchronised else np.zeros((6, 6))
+    return ImpactGeometry(
+        desired_positions=grasp_points,
+        bases=bases,
+        transitory=transitory_attractor(grasp_points, bases, rho).reshape(6),
+        desired_velocity=desired_impact_velocity(bases[:, :, 0], impact.impact_speed).reshape(6),
+        gain_matrix=gain,
+        relative_projector=projector,
+        region=impact.region,
+        shared=bool(coordination.coordinated))
+
+
+def grasp_distance(x, geometry):
+    """Return max_h |x^h - x_d^h| [m], the larger distance of an arm to its grasp point."""
+    error = np.asarray(x, dtype=float).reshape(2, 3) - geometry.desired_positions
+    return math.sqrt(max(error[0] @ error[0], error[1] @ error[1]))
+
+
+def impact_ds_velocity(x, geometry, grasp_velocity=None):
+    """
+    Return ImpactDSOutput: the coordinated reach-with-impact velocity (eq. 1) at x (6,) [m].
+
+    f_n = E A' E^T (x - x_t) (eq. 4), f_m1 from eq. 6, f_m2 = f_m3 = f_n (Proposition 2),
+    alpha, gamma from the region, x_dot = M f_n + f_g. grasp_velocity f_g (6,) is optional.
+    """
+    x = finite_array('x', x, (6,))
+    nominal = geometry.gain_matrix @ (x - geometry.transitory)
+    positions = x.reshape(2, 3)
+    distances = activation_distances(positions, geometry.transitory.reshape(2, 3),
+                                     geometry.bases, geometry.region.transitory_distance)
+    activation = region_activations(activations(distances, geometry.region), geometry.shared)
+    first = impact_target_field(nominal, geometry.desired_velocity, activation.gamma,
+                                geometry.relative_projector).reshape(2, 3)
+    other = nominal.reshape(2, 3)
+    targets = np.stack((first, other, other), axis=1)
+    grasp = None if grasp_velocity is None else np.reshape(grasp_velocity, (2, 3))
+    velocity = modulated_velocity(geometry.bases, other, targets, activation.alpha, grasp)
+    return ImpactDSOutput(velocity.reshape(6), nominal, activation)

@@ -1,0 +1,268 @@
+"""
+Cooperative manipulation of the grasped object: eq. 7, toss DS (eqs. 8-9), lift and place.
+
+The object is a point x_o (3,) [m], world frame; the arms are stacked as x = [x_L; x_R] (6,).
+Object fields use the absolute gain of the coordination (the object moves with the absolute
+position of the hands), so one gain matrix A serves reaching and manipulation alike.
+"""
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from dual_arm_control.core.cooperative import absolute_relative, left_right
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.geometry import unit
+from dual_arm_control.core.modulation import (
+    activation_distances, activations, modulated_velocity, modulation_bases,
+    ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
+from dual_arm_control.core.speed_shaping import saturated_velocity, speed_blend_weight
+from dual_arm_control.core.validation import check_range, check_vector, finite_array
+import numpy as np
+
+_TOSS_REGION = ModulationRegionConfig(
+    transitory_distance=0.14, radial_distance=0.30, normal_distance=0.04,
+    tangent_distance=0.02, radial_slope=100.0, normal_slope=600.0, tangent_slope=300.0)
+
+
+@dataclass(frozen=True)
+class TossConfig:
+    """
+    Desired release state of the object and the modulation region of the toss DS.
+
+    release_position: x_r (3,) [m], world frame. Default (0.68, 0, 0.45): the reference's
+        release x with a height on the line through the paper's grasp pose (0.41, 0, 0.32)
+        along the release direction.
+    release_direction: direction of the release velocity (3,), normalised here.
+        Default (1, 0, 0.5), the reference's releaseLinVel_dir.
+    toss_speed: release speed [m/s], in (0, 3]. Default 0.85 (reference desVtoss).
+    region: modulation region around x_r. Defaults: x_t 0.14 m before the release (the
+        reference's 0.4 rho with rho = 0.35), delta_normal 0.04 m, delta_tangent 0.02 m and
+        a radial ball of 0.30 m around x_t, which keeps the field along e1 positive through the
+        release point and 0.1 m beyond.
+    """
+
+    release_position: tuple = (0.68, 0.0, 0.45)
+    release_direction: tuple = (1.0, 0.0, 0.5)
+    toss_speed: float = 0.85
+    region: ModulationRegionConfig = _TOSS_REGION
+
+    def __post_init__(self):
+        check_vector('release_position', self.release_position, 3, 'm')
+        direction = check_vector('release_direction', self.release_direction, 3)
+        if np.linalg.norm(direction) < 1e-6:
+            raise ConfigError(f'release_direction must be non-zero, got {direction.tolist()}')
+        check_range('toss_speed', self.toss_speed, 0.0, 3.0, 'm/s', low_open=True)
+        if not isinstance(self.region, ModulationRegionConfig):
+            raise ConfigError(f'region must be a ModulationRegionConfig, got {self.region!r}')
+
+
+@dataclass(frozen=True)
+class LiftConfig:
+    """
+    Point attractor for the grasped object (pick and lift).
+
+    position: lift position (3,) [m], world frame. Default (0.45, 0, 0.45) (reference).
+    max_speed: speed cap of the object [m/s], in (0, 3]. Default 0.85.
+    """
+
+    position: tuple = (0.45, 0.0, 0.45)
+    max_speed: float = 0.85
+
+    def __post_init__(self):
+        check_vector('position', self.position, 3, 'm')
+        check_range('max_speed', self.max_speed, 0.0, 3.0, 'm/s', low_open=True)
+
+
+@dataclass(frozen=True)
+class PlaceConfig:
+    """
+    Pick-and-place DS: approach the place from above, then descend and stop on it.
+
+    position: place position of the object (3,) [m], world frame. Default (0.70, -0.12, 0.25)
+        (reference placing pose).
+    approach_height: height above the place at which the object travels [m], in (0, 1].
+        Default 0.05 (reference height_via_point).
+    descent_start_distance: horizontal distance to the place below which the descent begins
+        [m]. Default 0.10 (reference).
+    descent_end_distance: horizontal distance below which the target is the place itself [m],
+        < descent_start_distance. Default 0.02.
+    max_speed: speed cap of the object [m/s], in (0, 3]. Default 0.85.
+    """
+
+    position: tuple = (0.70, -0.12, 0.25)
+    approach_height: float = 0.05
+    descent_start_distance: float = 0.10
+    descent_end_distance: float = 0.02
+    max_speed: float = 0.85
+
+    def __post_init__(self):
+        check_vector('position', self.position, 3, 'm')
+        check_range('approach_height', self.approach_height, 0.0, 1.0, 'm', low_open=True)
+        check_range('descent_start_distance', self.descent_start_distance, 0.0, 1.0, 'm',
+                    low_open=True)
+        check_range('descent_end_distance', self.descent_end_distance, 0.0,
+                    self.descent_start_distance, 'm', high_open=True)
+        check_range('max_speed', self.max_speed, 0.0, 3.0, 'm/s', low_open=True)
+
+
+class TossGeometry(NamedTuple):
+    """Constant data of the toss DS, built by toss_geometry."""
+
+    release_position: np.ndarray
+    """x_r (3,) [m]."""
+    basis: np.ndarray
+    """E^o (1, 3, 3), e1 along the release velocity."""
+    transitory: np.ndarray
+    """x_t^o (3,) [m], rho before x_r on the release line."""
+    release_velocity: np.ndarray
+    """x_dot_r (3,) [m/s]."""
+    gain: float
+    """k > 0 [1/s]; the object field is -k (x_o - x_*)."""
+    region: ModulationRegionConfig
+
+
+class TossOutput(NamedTuple):
+    """One evaluation of the toss DS."""
+
+    velocity: np.ndarray
+    """x_dot_abs = M^o f_o (3,) [m/s], eq. 8."""
+    activation: RegionActivation
+
+
+def release_velocity(config):
+    """Return x_dot_r = toss_speed * unit(release_direction) (3,) [m/s]."""
+    return config.toss_speed * unit(config.release_direction, 'release_direction')
+
+
+def toss_geometry(config, coordination):
+    """Return the TossGeometry of a TossConfig; the gain is coordination.absolute_gain."""
+    velocity = release_velocity(config)
+    basis = modulation_bases(velocity)
+    position = np.asarray(config.release_position, dtype=float)
+    transitory = transitory_attractor(position[None], basis,
+                                      config.region.transitory_distance)[0]
+    return TossGeometry(position, basis, transitory, velocity,
+                        float(coordination.absolute_gain), config.region)
+
+
+def toss_attractor(x_object, geometry, gamma):
+    """
+    Return the e1 attractor x_*^o (3,) [m] of the toss DS (eq. 9).
+
+    x_*^o = (1 - gamma) x_t^o + gamma (x^o - A^-1 x_dot_r) with A = -k I3; the directions
+    e2, e3 keep x_t^o.
+    """
+    x_object = np.asarray(x_object, dtype=float)
+    return ((1.0 - gamma) * geometry.transitory
+            + gamma * (x_object + geometry.release_velocity / geometry.gain))
+
+
+def toss_target_fields(x_object, geometry, gamma):
+    """Return f_mi (1, 3, 3) [m/s]: A(x^o - x_*^o) along e1, A(x^o - x_t^o) along e2, e3."""
+    x_object = np.asarray(x_object, dtype=float)
+    first = -geometry.gain * (x_object - toss_attractor(x_object, geometry, gamma))
+    other = -geometry.gain * (x_object - geometry.transitory)
+    return np.stack((first, other, other))[None]
+
+
+def toss_velocity(x_object, geometry):
+    """
+    Return TossOutput: desired absolute velocity x_dot_abs = M^o f_o (eq. 8) at x_o (3,) [m].
+
+    f_o = -k (x^o - x_t^o) is the object's nominal field; M^o uses eq. 9's attractor for e1.
+    On the release line the e1 component is alpha gamma |x_dot_r| - (1 - alpha gamma) k s
+    (s = distance past x_t^o), positive wherever alpha gamma / (1 - alpha gamma) > k s /
+    |x_dot_r|, i.e. through x_r and beyond for the default region.
+    """
+    x_object = finite_array('x_object', x_object, (3,))
+    distances = activation_distances(x_object[None], geometry.transitory[None], geometry.basis,
+                                     geometry.region.transitory_distance)
+    activation = region_activations(activations(distances, geometry.region), shared=False)
+    nominal = -geometry.gain * (x_object - geometry.transitory)
+    targets = toss_target_fields(x_object, geometry, activation.gamma[0])
+    velocity = modulated_velocity(geometry.basis, nominal[None], targets, activation.alpha)
+    return TossOutput(velocity[0], activation)
+
+
+def desired_relative_velocity(grasp_points, object_angular_velocity):
+    """
+    Return x_dot_rel = -[x_o^R - x_o^L]x omega^o (3,) [m/s] (eq. 8).
+
+    grasp_points (2, 3) [m]: left and right grasp points; object_angular_velocity (3,)
+    [rad/s], world frame. Zero in pure translation.
+    """
+    grasp_points = np.asarray(grasp_points, dtype=float)
+    return np.cross(object_angular_velocity, grasp_points[1] - grasp_points[0])
+
+
+def manipulation_attractor(x, x_object, x_object_desired, grasp_points, kappa,
+                           free_attractor):
+    """
+    Return x_* (6,) [m] of the manipulation DS (eq. 7), blended by the contact activation.
+
+    x_* = kappa T_b^-1 [x_d^o + (x_abs - x^o); x_o^R - x_o^L] + (1 - kappa) free_attractor.
+    Eq. 7 prints only the first term; with kappa = 0 that would be the origin, so the
+    attractor of the free motion (e.g. the impact attractor) takes over instead. kappa = 1
+    gives eq. 7 exactly. grasp_points (2, 3) are the current grasp points on the object.
+    """
+    x = np.asarray(x, dtype=float)
+    grasp_points = np.asarray(grasp_points, dtype=float)
+    absolute = absolute_relative(x)[:3]
+    object_target = np.concatenate((
+        np.asarray(x_object_desired, dtype=float) + absolute - x_object,
+        grasp_points[1] - grasp_points[0]))
+    return kappa * left_right(object_target) + (1.0 - kappa) * np.asarray(free_attractor)
+
+
+def cooperative_manipulation_velocity(x, object_velocity, relative_velocity, grasp_points,
+                                      coordination):
+    """
+    Return the arms' velocity x_dot (6,) [m/s] carrying the object (eqs. 7-8).
+
+    x_dot = T_b^-1 [x_dot_abs; x_dot_rel - k_rel (x_rel - (x_o^R - x_o^L))]: the hands' midpoint
+    moves with the desired object velocity, their relative position follows x_dot_rel and is
+    held at the grasp points' separation. With object_velocity = -k_abs (x^o - x_d^o) this is
+    A'(x - x_*) with x_* from eq. 7 (kappa = 1, Proposition 3).
+    """
+    x = np.asarray(x, dtype=float)
+    grasp_points = np.asarray(grasp_points, dtype=float)
+    relative = x[3:] - x[:3]
+    relative_target = grasp_points[1] - grasp_points[0]
+    abs_rel_velocity = np.concatenate((
+        np.asarray(object_velocity, dtype=float),
+        np.asarray(relative_velocity, dtype=float)
+        - coordination.relative_gain * (relative - relative_target)))
+    return left_right(abs_rel_velocity)
+
+
+def lift_velocity(x_object, config, coordination):
+    """Return the object velocity (3,) [m/s] toward the lift position, capped at max_speed."""
+    x_object = finite_array('x_object', x_object, (3,))
+    velocity = -coordination.absolute_gain * (x_object - np.asarray(config.position))
+    return saturated_velocity(velocity, config.max_speed)
+
+
+def place_target(x_object, config):
+    """
+    Return the moving target (3,) [m] of the place DS.
+
+    The place position raised by approach_height * w, w = 1 beyond descent_start_distance
+    (horizontal) and 0 inside descent_end_distance (smoothstep between): the object travels at
+    the approach height, then descends onto the place once above it.
+    """
+    place = np.asarray(config.position, dtype=float)
+    horizontal = np.hypot(x_object[0] - place[0], x_object[1] - place[1])
+    weight = speed_blend_weight(horizontal, config.descent_end_distance,
+                                config.descent_start_distance)
+    return place + np.array([0.0, 0.0, config.approach_height * weight])
+
+
+def place_velocity(x_object, config, coordination):
+    """
+    Return the object velocity (3,) [m/s] of the pick-and-place DS, capped at max_speed.
+
+    -k_abs (x^o - place_target(x^o)): linear near the place, so the object slows to zero on it.
+    """
+    x_object = finite_array('x_object', x_object, (3,))
+    velocity = -coordination.absolute_gain * (x_object - place_target(x_object, config))
+    return saturated_velocity(velocity, config.max_speed)

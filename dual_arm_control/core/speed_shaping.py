@@ -1,0 +1,128 @@
+"""
+"Boosted" DS fields: keep the direction of a DS output, impose its speed (paper section IV-A).
+
+Far from the object the arms move at the reach speed, near it at the impact speed; during a
+toss the object moves at the toss speed. Speeds are functions of the state, so no filter is
+needed; SpeedFilter smooths a speed target that jumps (phase switches) with a time constant.
+"""
+
+from dataclasses import dataclass
+import math
+
+from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.validation import check_range
+import numpy as np
+
+_MIN_SPEED = 1e-9
+
+
+@dataclass(frozen=True)
+class SpeedProfileConfig:
+    """
+    Speed profile of the reach with impact.
+
+    reach_speed: speed of the faster arm far from the object [m/s], in (0, 2]. Default 0.85,
+        the reference's desVreach.
+    near_distance: distance to the grasp point below which the impact speed applies [m];
+        must cover the run from the transitory attractor (its rho, 0.2 m) with some margin.
+        Default 0.25.
+    far_distance: distance above which the reach speed applies [m], > near_distance.
+        Default 0.5.
+    time_constant: time constant of SpeedFilter [s], in (0, 10].
+    """
+
+    reach_speed: float = 0.85
+    near_distance: float = 0.25
+    far_distance: float = 0.50
+    time_constant: float = 0.05
+
+    def __post_init__(self):
+        check_range('reach_speed', self.reach_speed, 0.0, 2.0, 'm/s', low_open=True)
+        check_range('near_distance', self.near_distance, 0.0, 2.0, 'm')
+        check_range('far_distance', self.far_distance, self.near_distance, 5.0, 'm',
+                    low_open=True)
+        check_range('time_constant', self.time_constant, 0.0, 10.0, 's', low_open=True)
+
+
+def speed_blend_weight(distance, near_distance, far_distance):
+    """
+    Return w in [0, 1]: 0 at or below near_distance, 1 at or above far_distance.
+
+    Cubic smoothstep in between (continuous with continuous slope).
+    """
+    ratio = np.clip((np.asarray(distance, dtype=float) - near_distance)
+                    / (far_distance - near_distance), 0.0, 1.0)
+    return ratio * ratio * (3.0 - 2.0 * ratio)
+
+
+def profile_speed(distance, near_speed, far_speed, near_distance, far_distance):
+    """Return near_speed + (far_speed - near_speed) w(distance) [m/s]."""
+    weight = speed_blend_weight(distance, near_distance, far_distance)
+    return near_speed + (far_speed - near_speed) * weight
+
+
+def reach_speed(distance, impact_speed, config):
+    """Return the reach-with-impact speed [m/s] at a distance [m] from the grasp points."""
+    return profile_speed(distance, impact_speed, config.reach_speed, config.near_distance,
+                         config.far_distance)
+
+
+def boosted_velocity(velocity, speed):
+    """
+    Return speed * velocity / |velocity| (..., 3) [m/s]: one point's DS direction at a speed.
+
+    For one arm or the object. Where the DS output vanishes, zero is returned.
+    """
+    velocity = np.asarray(velocity, dtype=float)
+    norm = np.linalg.norm(velocity, axis=-1, keepdims=True)
+    return np.where(norm > _MIN_SPEED, velocity * (np.asarray(speed)[..., None]
+                                                   / np.maximum(norm, _MIN_SPEED)), 0.0)
+
+
+def boosted_coordinated_velocity(velocity, speed):
+    """
+    Return the coordinated field (6,) scaled so that the faster arm moves at speed [m/s].
+
+    Both arms are scaled by the same factor: a positive scaling of the whole 6D field is a
+    change of time along the same trajectories, so the coordination (simultaneous contact)
+    is preserved. Normalising each arm to its own speed would erase the relative motion that
+    lets one arm wait for the other. Where both arms' outputs vanish, zero is returned.
+    """
+    velocity = np.asarray(velocity, dtype=float)
+    fastest = max(math.sqrt(velocity[:3] @ velocity[:3]), math.sqrt(velocity[3:] @ velocity[3:]))
+    if fastest <= _MIN_SPEED:
+        return np.zeros(6)
+    return velocity * (speed / fastest)
+
+
+def saturated_velocity(velocity, max_speed):
+    """Return velocity (..., 3) rescaled per point to at most max_speed [m/s]."""
+    velocity = np.asarray(velocity, dtype=float)
+    norm = np.linalg.norm(velocity, axis=-1, keepdims=True)
+    return velocity * np.minimum(1.0, max_speed / np.maximum(norm, _MIN_SPEED))
+
+
+class SpeedFilter:
+    """
+    First-order low-pass of a speed [m/s]: ds/dt = (target - s) / time_constant.
+
+    Discretised exactly for a constant target over each step, so the response does not
+    depend on the call rate.
+    """
+
+    def __init__(self, time_constant, initial_speed=0.0):
+        """Create the filter; time_constant [s] > 0, initial_speed [m/s]."""
+        self.time_constant = check_range('time_constant', time_constant, 0.0, math.inf, 's',
+                                         low_open=True)
+        self.speed = float(initial_speed)
+
+    def reset(self, speed=0.0):
+        """Set the filtered speed [m/s]."""
+        self.speed = float(speed)
+
+    def update(self, target_speed, dt):
+        """Advance by dt [s] toward target_speed [m/s]; return the filtered speed."""
+        if not (math.isfinite(dt) and dt >= 0.0):
+            raise InputError(f'dt must be finite and >= 0 s, got {dt!r}')
+        self.speed += (1.0 - math.exp(-dt / self.time_constant)) * (target_speed - self.speed)
+        return self.speed

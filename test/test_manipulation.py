@@ -1,0 +1,246 @@
+"""Cooperative manipulation: eq. 7 / Proposition 3, toss DS (eqs. 8-9), lift and place."""
+
+import math
+
+from dual_arm_control.core.cooperative import (
+    absolute_relative, coordinated_gain_matrix, CoordinationConfig)
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.manipulation import (
+    cooperative_manipulation_velocity, desired_relative_velocity, lift_velocity, LiftConfig,
+    manipulation_attractor, place_target, place_velocity, PlaceConfig, release_velocity,
+    toss_attractor, toss_geometry, toss_target_fields, toss_velocity, TossConfig)
+from dual_arm_control.core.speed_shaping import boosted_velocity
+import numpy as np
+import pytest
+
+OBJECT_START = np.array([0.41, 0.0, 0.32])
+# Grasp points 2 cm behind the object centre (reference cubicBoxSim offset), on the +-y faces.
+GRASP_OFFSETS = np.array([[-0.02, 0.1, 0.0], [-0.02, -0.1, 0.0]])
+COORDINATION = CoordinationConfig()
+
+
+def angle_deg(a, b):
+    """Return the angle between two vectors [deg]."""
+    return math.degrees(math.acos(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)),
+                                          -1.0, 1.0)))
+
+
+def test_manipulation_velocity_is_a_prime_toward_the_eq_7_attractor():
+    rng = np.random.default_rng(20)
+    gain = coordinated_gain_matrix(COORDINATION)
+    for _ in range(20):
+        x_object = OBJECT_START + rng.uniform(-0.1, 0.1, 3)
+        grasp_points = x_object + GRASP_OFFSETS
+        x = grasp_points.reshape(6) + rng.uniform(-0.02, 0.02, 6)
+        target = rng.uniform(0.3, 0.6, 3)
+        attractor = manipulation_attractor(x, x_object, target, grasp_points, 1.0, np.zeros(6))
+        object_velocity = -COORDINATION.absolute_gain * (x_object - target)
+        np.testing.assert_allclose(
+            cooperative_manipulation_velocity(x, object_velocity, np.zeros(3), grasp_points,
+                                              COORDINATION),
+            gain @ (x - attractor), atol=1e-12)
+
+
+def test_manipulation_attractor_blends_with_kappa():
+    grasp_points = OBJECT_START + GRASP_OFFSETS
+    x = grasp_points.reshape(6)
+    free = np.arange(6.0)
+    target = np.array([0.45, 0.0, 0.45])
+    np.testing.assert_array_equal(
+        manipulation_attractor(x, OBJECT_START, target, grasp_points, 0.0, free), free)
+    full = manipulation_attractor(x, OBJECT_START, target, grasp_points, 1.0, free)
+    np.testing.assert_allclose(full, (grasp_points + target - OBJECT_START).reshape(6),
+                               atol=1e-15)
+    np.testing.assert_allclose(
+        manipulation_attractor(x, OBJECT_START, target, grasp_points, 0.25, free),
+        0.25 * full + 0.75 * free, atol=1e-15)
+
+
+def test_proposition_3_object_converges_to_its_attractor():
+    gain = coordinated_gain_matrix(COORDINATION)
+    target = np.array([0.45, 0.0, 0.45])
+    rng = np.random.default_rng(21)
+    for squeeze in (0.0, 0.01):
+        x = (OBJECT_START + GRASP_OFFSETS).reshape(6)
+        x[:3] -= squeeze * np.array([0.0, 1.0, 0.0])   # left hand 1 cm off its grasp point
+        offset = absolute_relative(x)[:3] - OBJECT_START
+        dt = 0.001
+        for _ in range(3000):
+            x_object = absolute_relative(x)[:3] - offset   # rigid grasp: the object follows
+            grasp_points = x_object + GRASP_OFFSETS
+            attractor = manipulation_attractor(x, x_object, target, grasp_points, 1.0,
+                                               rng.normal(size=6))
+            x = x + dt * gain @ (x - attractor)
+        x_object = absolute_relative(x)[:3] - offset
+        # Slowest rate 4.5 /s over 3 s: e^-13.5 of the initial 0.14 m.
+        assert np.linalg.norm(x_object - target) < 1e-5
+        np.testing.assert_allclose(x[3:] - x[:3], GRASP_OFFSETS[1] - GRASP_OFFSETS[0],
+                                   atol=1e-6)
+
+
+def test_desired_relative_velocity_is_rotation_of_the_grasp_separation():
+    grasp_points = OBJECT_START + GRASP_OFFSETS
+    np.testing.assert_array_equal(desired_relative_velocity(grasp_points, np.zeros(3)),
+                                  np.zeros(3))
+    omega = np.array([0.0, 0.0, 2.0])
+    separation = grasp_points[1] - grasp_points[0]   # (0, -0.2, 0)
+    velocity = desired_relative_velocity(grasp_points, omega)
+    np.testing.assert_allclose(velocity, [0.4, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(velocity, -np.cross(separation, omega), atol=1e-15)
+
+
+def test_rotating_object_carries_the_hands_consistently():
+    grasp_points = OBJECT_START + GRASP_OFFSETS
+    x = grasp_points.reshape(6)
+    omega = np.array([0.0, 0.0, 1.5])
+    v_object = np.array([0.3, 0.0, 0.1])
+    velocity = cooperative_manipulation_velocity(
+        x, v_object, desired_relative_velocity(grasp_points, omega), grasp_points, COORDINATION)
+    centre = grasp_points.mean(axis=0)
+    for h in range(2):
+        np.testing.assert_allclose(velocity[3 * h:3 * h + 3],
+                                   v_object + np.cross(omega, grasp_points[h] - centre),
+                                   atol=1e-15)
+
+
+def test_toss_attractor_and_target_fields_eq_9():
+    geometry = toss_geometry(TossConfig(), COORDINATION)
+    x = np.array([0.5, 0.02, 0.36])
+    np.testing.assert_allclose(toss_attractor(x, geometry, 0.0), geometry.transitory)
+    np.testing.assert_allclose(toss_attractor(x, geometry, 1.0),
+                               x + geometry.release_velocity / COORDINATION.absolute_gain)
+    targets = toss_target_fields(x, geometry, 1.0)
+    np.testing.assert_allclose(targets[0, 0], geometry.release_velocity, atol=1e-15)
+    np.testing.assert_allclose(targets[0, 1], -4.5 * (x - geometry.transitory), atol=1e-15)
+
+
+def test_toss_geometry_matches_the_config():
+    config = TossConfig()
+    geometry = toss_geometry(config, COORDINATION)
+    direction = np.array([1.0, 0.0, 0.5]) / math.sqrt(1.25)
+    np.testing.assert_allclose(release_velocity(config), 0.85 * direction, atol=1e-15)
+    np.testing.assert_allclose(geometry.basis[0][:, 0], direction, atol=1e-15)
+    np.testing.assert_allclose(geometry.transitory, np.array(config.release_position)
+                               - 0.14 * direction, atol=1e-15)
+
+
+def test_toss_field_along_e1_is_positive_through_the_release_point():
+    geometry = toss_geometry(TossConfig(), COORDINATION)
+    e1, e2, e3 = geometry.basis[0].T
+    rho = geometry.region.transitory_distance
+    for s in np.linspace(0.0, rho + 0.05, 200):
+        for lateral in (np.zeros(3), 0.01 * e2, -0.01 * e3):
+            velocity = toss_velocity(geometry.transitory + s * e1 + lateral, geometry).velocity
+            assert velocity @ e1 > 0.8, f'{velocity @ e1:.3f} m/s at {s:.3f} m past x_t'
+    at_release = toss_velocity(geometry.release_position, geometry).velocity
+    np.testing.assert_allclose(at_release, geometry.release_velocity, atol=1e-4)
+
+
+@pytest.mark.parametrize('boosted', [False, True])
+def test_toss_from_the_grasp_pose_passes_the_release_state(boosted):
+    config = TossConfig()
+    geometry = toss_geometry(config, COORDINATION)
+    x_object, dt = OBJECT_START.copy(), 0.001
+    closest = (math.inf, None)
+    for _ in range(1000):
+        velocity = toss_velocity(x_object, geometry).velocity
+        if boosted:
+            velocity = boosted_velocity(velocity, config.toss_speed)
+        distance = np.linalg.norm(x_object - geometry.release_position)
+        if distance < closest[0]:
+            closest = (distance, velocity)
+        x_object = x_object + dt * velocity
+    distance, velocity = closest
+    speed_error = abs(np.linalg.norm(velocity) / config.toss_speed - 1.0)
+    direction_error = angle_deg(velocity, geometry.release_velocity)
+    print(f'boosted={boosted}: closest to release {distance * 1e3:.2f} mm, speed '
+          f'{speed_error * 100:.3f} %, direction {direction_error:.2f} deg')
+    assert distance < 0.005
+    assert speed_error < 0.02
+    assert direction_error < 2.0
+
+
+def closest_toss_approach(x_object, geometry, duration=2.0, dt=0.001):
+    """Return (distance [m], velocity (3,)) of a boosted toss run at its closest to release."""
+    closest = (math.inf, None)
+    for _ in range(int(duration / dt)):
+        velocity = boosted_velocity(toss_velocity(x_object, geometry).velocity, 0.85)
+        distance = np.linalg.norm(x_object - geometry.release_position)
+        if distance < closest[0]:
+            closest = (distance, velocity)
+        x_object = x_object + dt * velocity
+    return closest
+
+
+@pytest.mark.parametrize('offset', [(0.0, 0.02, 0.0), (0.0, -0.015, 0.015), (0.0, 0.0, -0.02)])
+def test_toss_from_near_the_line_converges_onto_it(offset):
+    geometry = toss_geometry(TossConfig(), COORDINATION)
+    distance, velocity = closest_toss_approach(OBJECT_START + offset, geometry)
+    assert distance < 0.005
+    assert angle_deg(velocity, geometry.release_velocity) < 2.0
+
+
+def test_toss_from_far_off_the_line_goes_to_the_transitory_attractor_first():
+    """Outside delta_normal (0.04 m) the object is first drawn to x_t, then launched."""
+    geometry = toss_geometry(TossConfig(), COORDINATION)
+    distance, velocity = closest_toss_approach(OBJECT_START + [0.0, 0.08, -0.05], geometry)
+    print(f'9.4 cm off the line: closest to release {distance * 1e3:.1f} mm, direction '
+          f'{angle_deg(velocity, geometry.release_velocity):.1f} deg')
+    assert distance < 0.02
+    assert velocity @ geometry.basis[0][:, 0] > 0.8
+
+
+def test_lift_converges_with_capped_speed():
+    config = LiftConfig()
+    x_object, top_speed = OBJECT_START.copy(), 0.0
+    for _ in range(4000):
+        velocity = lift_velocity(x_object, config, COORDINATION)
+        top_speed = max(top_speed, np.linalg.norm(velocity))
+        x_object = x_object + 0.001 * velocity
+    assert np.linalg.norm(x_object - np.array(config.position)) < 1e-6
+    assert top_speed <= config.max_speed + 1e-12
+    capped = lift_velocity(np.array(config.position) + [0.0, 0.0, -1.0], config, COORDINATION)
+    assert np.linalg.norm(capped) == pytest.approx(config.max_speed)
+
+
+def test_place_approaches_from_above_and_stops_on_the_place():
+    config = PlaceConfig()
+    place = np.array(config.position)
+    x_object, path, speeds = OBJECT_START.copy(), [], []
+    for _ in range(4000):
+        velocity = place_velocity(x_object, config, COORDINATION)
+        path.append(x_object)
+        speeds.append(np.linalg.norm(velocity))
+        x_object = x_object + 0.001 * velocity
+    path = np.array(path)
+    horizontal = np.hypot(path[:, 0] - place[0], path[:, 1] - place[1])
+    low = path[:, 2] < place[2] + 0.5 * config.approach_height
+    assert np.linalg.norm(x_object - place) < 1e-3
+    assert speeds[-1] < 1e-3
+    assert max(speeds) <= config.max_speed + 1e-12
+    # Below half the approach height only when already above the place.
+    assert np.all(horizontal[low] < config.descent_start_distance)
+    assert path[:, 2].min() > place[2] - 1e-6
+
+
+def test_place_target_is_raised_far_away_and_the_place_above_it():
+    config = PlaceConfig()
+    place = np.array(config.position)
+    np.testing.assert_allclose(place_target(place + [0.3, 0.0, 0.1], config),
+                               place + [0.0, 0.0, config.approach_height])
+    np.testing.assert_allclose(place_target(place + [0.01, 0.0, 0.1], config), place)
+
+
+@pytest.mark.parametrize('config_type, field, value', [
+    (TossConfig, 'release_position', (0.7, 0.0)),
+    (TossConfig, 'release_direction', (0.0, 0.0, 0.0)),
+    (TossConfig, 'toss_speed', 0.0),
+    (TossConfig, 'region', None),
+    (LiftConfig, 'position', (0.4, float('nan'), 0.4)),
+    (LiftConfig, 'max_speed', -1.0),
+    (PlaceConfig, 'approach_height', 0.0),
+    (PlaceConfig, 'descent_end_distance', 0.2),
+    (PlaceConfig, 'max_speed', 5.0)])
+def test_configs_reject_bad_values_naming_the_field(config_type, field, value):
+    with pytest.raises(ConfigError, match=field):
+        config_type(**{field: value})

@@ -1,0 +1,93 @@
+"""Speed shaping of the DS outputs ("boosted" fields) and the first-order speed filter."""
+
+import math
+
+from dual_arm_control.core.exceptions import ConfigError, InputError
+from dual_arm_control.core.speed_shaping import (
+    boosted_coordinated_velocity, boosted_velocity, profile_speed, reach_speed,
+    saturated_velocity, speed_blend_weight, SpeedFilter, SpeedProfileConfig)
+import numpy as np
+import pytest
+
+
+def test_blend_weight_is_a_smooth_step_between_the_distances():
+    distances = np.linspace(0.0, 1.0, 1001)
+    weight = speed_blend_weight(distances, 0.25, 0.5)
+    assert np.all(weight[distances <= 0.25] == 0.0)
+    assert np.all(weight[distances >= 0.5] == 1.0)
+    assert np.all(np.diff(weight) >= 0.0)
+    assert speed_blend_weight(0.375, 0.25, 0.5) == pytest.approx(0.5)
+    # Continuous slope: zero derivative at both ends.
+    step = 1e-7
+    for edge in (0.25, 0.5):
+        slope = (speed_blend_weight(edge + step, 0.25, 0.5)
+                 - speed_blend_weight(edge - step, 0.25, 0.5)) / (2 * step)
+        assert abs(slope) < 1e-5
+
+
+def test_reach_speed_is_impact_speed_near_and_reach_speed_far():
+    config = SpeedProfileConfig()
+    assert reach_speed(0.1, 0.45, config) == pytest.approx(0.45)
+    assert reach_speed(config.near_distance, 0.45, config) == pytest.approx(0.45)
+    assert reach_speed(2.0, 0.45, config) == pytest.approx(config.reach_speed)
+    middle = 0.5 * (config.near_distance + config.far_distance)
+    assert reach_speed(middle, 0.45, config) == pytest.approx(0.5 * (0.45 + 0.85))
+    assert profile_speed(0.0, 1.0, 2.0, 0.1, 0.2) == 1.0
+
+
+def test_boosted_velocity_keeps_direction_and_imposes_speed():
+    rng = np.random.default_rng(30)
+    velocity = rng.normal(size=(10, 3))
+    speeds = rng.uniform(0.1, 1.0, 10)
+    boosted = boosted_velocity(velocity, speeds)
+    np.testing.assert_allclose(np.linalg.norm(boosted, axis=1), speeds, atol=1e-14)
+    np.testing.assert_allclose(np.cross(boosted, velocity), 0.0, atol=1e-14)
+    assert np.all(np.einsum('ij,ij->i', boosted, velocity) > 0.0)
+    np.testing.assert_array_equal(boosted_velocity(np.zeros(3), 0.85), np.zeros(3))
+
+
+def test_boosted_coordinated_velocity_scales_both_arms_alike():
+    velocity = np.array([0.3, -0.4, 0.0, 0.1, 0.1, 0.0])
+    boosted = boosted_coordinated_velocity(velocity, 0.45)
+    np.testing.assert_allclose(boosted, velocity * 0.45 / 0.5, atol=1e-15)
+    assert np.linalg.norm(boosted[:3]) == pytest.approx(0.45)
+    np.testing.assert_array_equal(boosted_coordinated_velocity(np.zeros(6), 0.45), np.zeros(6))
+
+
+def test_saturated_velocity_caps_only_fast_points():
+    velocity = np.array([[0.3, 0.0, 0.0], [0.0, 3.0, 4.0]])
+    capped = saturated_velocity(velocity, 1.0)
+    np.testing.assert_array_equal(capped[0], velocity[0])
+    np.testing.assert_allclose(capped[1], [0.0, 0.6, 0.8], atol=1e-15)
+    np.testing.assert_array_equal(saturated_velocity(np.zeros(3), 1.0), np.zeros(3))
+
+
+def test_speed_filter_response_does_not_depend_on_the_step():
+    results = []
+    for dt in (0.001, 0.005):
+        speed_filter = SpeedFilter(time_constant=0.05)
+        for _ in range(int(round(0.05 / dt))):
+            speed = speed_filter.update(0.85, dt)
+        results.append(speed)
+    np.testing.assert_allclose(results, 0.85 * (1.0 - math.exp(-1.0)), rtol=1e-12)
+    speed_filter = SpeedFilter(0.05, initial_speed=0.45)
+    assert speed_filter.update(0.85, 0.0) == 0.45
+    speed_filter.reset()
+    assert speed_filter.speed == 0.0
+
+
+def test_speed_filter_rejects_bad_inputs():
+    with pytest.raises(ConfigError, match='time_constant'):
+        SpeedFilter(0.0)
+    with pytest.raises(InputError, match='dt'):
+        SpeedFilter(0.05).update(1.0, -0.001)
+    with pytest.raises(InputError, match='dt'):
+        SpeedFilter(0.05).update(1.0, float('nan'))
+
+
+@pytest.mark.parametrize('field, value', [
+    ('reach_speed', 0.0), ('reach_speed', 2.5), ('near_distance', -0.1),
+    ('far_distance', 0.2), ('time_constant', 0.0)])
+def test_config_rejects_bad_values_naming_the_field(field, value):
+    with pytest.raises(ConfigError, match=field):
+        SpeedProfileConfig(**{field: value})
