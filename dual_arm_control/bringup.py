@@ -199,7 +199,8 @@ def _write_results(args):
     """Compute metrics and plots from the bridge's ground-truth log; return the exit code."""
     from dual_arm_control.evaluation.episode import evaluate_episode
     try:
-        metrics = evaluate_episode(args.scenario, args.out / 'trajectory.npz', args.out)
+        metrics = evaluate_episode(args.scenario, args.out / 'trajectory.npz', args.out,
+                                   graph=args.graph)
     except (ConfigError, OSError, KeyError, ValueError) as error:
         print(f'dual_arm_bringup: cannot evaluate the episode: {error}', file=sys.stderr)
         return 5

@@ -267,12 +267,16 @@ class FtBiasEstimator:
 
     @property
     def bias(self):
-        """Return the (6,) bias in the sensor frame, or None while estimating."""
-        return None if self._bias is None else self._bias.copy()
+        """Return the (6,) bias as it appears in the raw readings, or None while estimating."""
+        return None if self._bias is None else -self._bias
 
     def update(self, raw_wrench_sensor, R_world_sensor, dt):
         """
         Feed one reading (6,) [N, N m] taken with rotation R_world_sensor; return the result.
+
+        The reading follows the Net F/T convention of the bridge's ft_wrench topic: the wrench
+        the tool applies to the sensor, in the sensor frame. It is negated here into the wrench
+        the sensor applies to the tool, the convention of tool_weight_reading.
 
         dt (s) is the time this sample represents (time since the previous reading). While the
         window is open the weight-compensated reading is accumulated with weight dt (the last
@@ -281,7 +285,7 @@ class FtBiasEstimator:
         raw_wrench_sensor = finite_array('raw_wrench_sensor', raw_wrench_sensor, (6,))
         dt = _checked_dt(dt)
         R_world_sensor = finite_array('R_world_sensor', R_world_sensor, (3, 3))
-        unloaded = raw_wrench_sensor - tool_weight_reading(R_world_sensor, self._config)
+        unloaded = -raw_wrench_sensor - tool_weight_reading(R_world_sensor, self._config)
         if self._bias is None:
             weight = min(dt, self._config.bias_duration - self._elapsed)
             self._weighted_sum += weight * unloaded

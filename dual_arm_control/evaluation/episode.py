@@ -1,0 +1,183 @@
+"""
+Evaluate one episode: the metrics.json contract and the plots, from simulator ground truth.
+
+metrics.json keys (SI units, times in sim seconds from the episode start, null where not
+applicable) are listed in METRIC_KEYS; README.md documents them.
+"""
+
+from pathlib import Path
+
+from dual_arm_control.contract import ARMS
+from dual_arm_control.core.ballistics import landing_without_drag
+from dual_arm_control.core.grasp import grasp_frame
+from dual_arm_control.description.cell import load_cell
+from dual_arm_control.evaluation import metrics, plots
+from dual_arm_control.evaluation.trajectory import load_trajectory
+from dual_arm_control.scenario import load_scenario, PLACE_TASKS, TOSS_TASKS
+import numpy as np
+
+METRIC_KEYS = (
+    'success', 't_contact_left', 't_contact_right', 'contact_time_gap', 'impact_speed_left',
+    'impact_speed_right', 't_release', 'release_position', 'release_position_error',
+    'release_velocity', 'release_velocity_error', 'landing_position', 'landing_error',
+    'cycle_time', 'place_position_error', 'energy_left', 'energy_right', 'max_slip',
+    'torque_clamp_count', 'refused_message_count',
+)
+
+# Pass/fail thresholds of an episode, per task family.
+CONTACT_GAP_LIMIT = 0.010
+RELEASE_POSITION_LIMIT = 0.03
+RELEASE_VELOCITY_LIMIT = 0.10
+LANDING_LIMIT = 0.05
+PLACE_LIMIT = 0.03
+PLACE_SPEED_LIMIT = 0.1
+SLIP_LIMIT = 0.01
+HOLD_DRIFT_LIMIT = 0.001
+
+
+def _time(t, index):
+    return None if index is None else float(t[index])
+
+
+def _vector(value):
+    return None if value is None else [float(v) for v in value]
+
+
+def _impact_directions(scenario):
+    """Return the inward face normals at the object's initial pose, per arm."""
+    yaw = scenario.object.yaw
+    R_world_object = np.array([[np.cos(yaw), -np.sin(yaw), 0.0],
+                               [np.sin(yaw), np.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+    return {arm: grasp_frame(arm, scenario.object.position, R_world_object,
+                             scenario.object.size).normal for arm in ARMS}
+
+
+def predicted_landing(p_release, v_release, object_height, cell):
+    """Return the drag-free landing point of the box centre on the surface below."""
+    landing = None
+    surface = cell.front_table.top_height
+    for _ in range(3):
+        landing = landing_without_drag(p_release, v_release, surface + 0.5 * object_height)
+        below = cell.surface_height(*landing.position[:2])
+        if below == surface:
+            break
+        surface = below
+    return landing.position
+
+
+def episode_metrics(scenario, data, cell):
+    """Return the metrics dict of one episode from its trajectory arrays."""
+    t = data['t'] - data['t'][0]
+    result = dict.fromkeys(METRIC_KEYS)
+    contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
+    directions = _impact_directions(scenario)
+    for arm in ARMS:
+        result[f't_contact_{arm}'] = _time(t, contact_index[arm])
+        result[f'impact_speed_{arm}'] = metrics.impact_speed(
+            data[f'{arm}_tool_velocity'], contact_index[arm])
+        result[f'impact_speed_along_normal_{arm}'] = metrics.impact_speed(
+            data[f'{arm}_tool_velocity'], contact_index[arm], directions[arm])
+    if None not in contact_index.values():
+        result['contact_time_gap'] = abs(result['t_contact_left'] - result['t_contact_right'])
+    grasp, release = metrics.grasp_and_release_indices(
+        t, data['left_pad_contact'], data['right_pad_contact'])
+    result['t_grasp'] = _time(t, grasp)
+    result['t_release'] = _time(t, release)
+    slips = [metrics.max_pad_slip(data[f'{arm}_tool_position'], data['object_position'],
+                                  data['object_quat_xyzw'], grasp, release or len(t))
+             for arm in ARMS]
+    result['max_slip'] = None if None in slips else max(slips)
+    if release is not None:
+        p_release = data['object_position'][release]
+        v_release = data['object_velocity'][release]
+        result['release_position'] = _vector(p_release)
+        result['release_velocity'] = _vector(v_release)
+        if scenario.release is not None:
+            result['release_position_error'] = float(
+                np.linalg.norm(p_release - scenario.release.position))
+            result['release_velocity_error'] = metrics.relative_velocity_error(
+                v_release, scenario.release.velocity)
+        height = scenario.object.size[2]
+        landed = metrics.landing_index(t, data['object_position'], release + 1, 0.5 * height,
+                                       cell.surface_height)
+        if scenario.task in TOSS_TASKS and landed is not None:
+            landing = data['object_position'][landed]
+            result['landing_position'] = _vector(landing)
+            predicted = predicted_landing(p_release, v_release, height, cell)
+            result['landing_prediction_error'] = float(np.linalg.norm((landing - predicted)[:2]))
+            if scenario.landing_target is not None:
+                target = np.asarray(scenario.landing_target, dtype=float)
+            else:
+                target = predicted_landing(scenario.release.position, scenario.release.velocity,
+                                           height, cell)
+            result['landing_error'] = float(np.linalg.norm((landing - target)[:2]))
+        if scenario.task in PLACE_TASKS and scenario.place is not None:
+            result['place_position_error'] = float(
+                np.linalg.norm(data['object_position'][-1] - scenario.place))
+            result['place_speed'] = float(np.linalg.norm(v_release))
+    home = metrics.return_home_index(t, [data[f'{arm}_tool_position'] for arm in ARMS],
+                                     release)
+    result['cycle_time'] = _time(t, home)
+    end = (home + 1) if home is not None else len(t)
+    for arm in ARMS:
+        result[f'energy_{arm}'] = metrics.mechanical_energy(
+            t[:end], data[f'{arm}_tau'][:end], data[f'{arm}_dq'][:end])
+        drift = np.linalg.norm(data[f'{arm}_tool_position'] - data[f'{arm}_tool_position'][0],
+                               axis=1)
+        result[f'max_tool_drift_{arm}'] = float(drift.max())
+    for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
+        result[counter] = int(data[counter]) if counter in data else None
+    result['sim_duration'] = float(t[-1])
+    result['success'] = bool(_success(scenario, result))
+    return result
+
+
+def _success(scenario, result):
+    """Return whether the episode met its task's criteria."""
+    gap = result['contact_time_gap']
+    grasped = gap is not None and gap <= CONTACT_GAP_LIMIT and result['t_grasp'] is not None
+    no_slip = result['max_slip'] is not None and result['max_slip'] <= SLIP_LIMIT
+    if scenario.task in TOSS_TASKS:
+        return (grasped and no_slip and result['release_position_error'] is not None
+                and result['release_position_error'] <= RELEASE_POSITION_LIMIT
+                and result['release_velocity_error'] <= RELEASE_VELOCITY_LIMIT
+                and result['landing_error'] is not None
+                and result['landing_error'] <= LANDING_LIMIT)
+    if scenario.task in PLACE_TASKS:
+        return (grasped and no_slip and result['place_position_error'] is not None
+                and result['place_position_error'] <= PLACE_LIMIT
+                and result['place_speed'] <= PLACE_SPEED_LIMIT)
+    return grasped and no_slip
+
+
+def hold_metrics(data):
+    """Return the metrics of a hold run (twin under a gravity-compensation test controller)."""
+    result = {'sim_duration': float(data['t'][-1] - data['t'][0])}
+    for arm in ARMS:
+        drift = np.linalg.norm(data[f'{arm}_tool_position'] - data[f'{arm}_tool_position'][0],
+                               axis=1)
+        result[f'max_tool_drift_{arm}'] = float(drift.max())
+    for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
+        result[counter] = int(data[counter]) if counter in data else None
+    result['success'] = all(result[f'max_tool_drift_{arm}'] <= HOLD_DRIFT_LIMIT for arm in ARMS)
+    return result
+
+
+def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full'):
+    """Compute the metrics of an episode and write its plots into out_dir; return the metrics."""
+    out_dir = Path(out_dir)
+    data = load_trajectory(trajectory_path)
+    if graph == 'hold':
+        plots.plot_tool_drift(data, out_dir / 'tool_drift.png')
+        return hold_metrics(data)
+    cell = load_cell()
+    scenario = load_scenario(scenario_path, cell=cell)
+    result = episode_metrics(scenario, data, cell)
+    events = {'contact': min((v for v in (result['t_contact_left'], result['t_contact_right'])
+                              if v is not None), default=None),
+              'release': result['t_release']}
+    shifted = dict(data, t=data['t'] - data['t'][0])
+    plots.plot_tool_speeds(shifted, events, out_dir / 'tool_speeds.png')
+    plots.plot_object_motion(shifted, events, out_dir / 'object_motion.png')
+    plots.plot_trajectories_3d(shifted, out_dir / 'trajectories_3d.png')
+    return result
