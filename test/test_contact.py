@@ -133,11 +133,11 @@ def test_tool_weight_matches_mujoco_force_torque_sensor():
 
 
 def synthetic_reading(R_world_sensor, bias, config, f_world_pad=np.zeros(3)):
-    """Net F/T reading: -(bias + tool weight + pad wrench on the object about the sensor)."""
+    """Net F/T reading: bias - (tool weight + pad wrench on the object about the sensor)."""
     p_sensor_contact = np.array([0.0, 0.0, 0.115])
     f_sensor_pad = R_world_sensor.T @ f_world_pad
     contact = np.concatenate((f_sensor_pad, np.cross(p_sensor_contact, f_sensor_pad)))
-    return -(bias + tool_weight_reading(R_world_sensor, config) + contact)
+    return bias - (tool_weight_reading(R_world_sensor, config) + contact)
 
 
 @pytest.mark.parametrize('dt', [0.001, 0.002, 0.005])
