@@ -1,0 +1,286 @@
+"""
+Passive-DS torque controller of one arm (Kronander and Billard 2016), as used by the paper.
+
+Per tick, with the tool twist [v; w] = J(q) dq (world-aligned at the tool point):
+
+    F = -D(v_d) (v - v_d)                  D = Q diag(lambda0, lambda1, lambda1) Q^T
+    M = -d_w (w - w_d) + K_R log(R_d R^T)  orientation damping and stiffness
+    tau = J^T ([F; M] + w_c) + g(q) + N tau_null,   tau_null = -K_n (q - q_n) - d_n dq
+
+w_c is the contact wrench the QP assigns to this pad (applied by the pad on the object), so the
+robot pushes with +w_c. g(q) is pinocchio's gravity torque of arm and tool.
+
+Null space: the symmetric (kinematic) projector N = I - J^T (J J^T + eps^2 I)^-1 J. Being
+symmetric positive semi-definite it keeps the projected joint damping -d_n N dq dissipative
+(d_n is a scalar for that reason), which the dynamically consistent projector (not
+symmetric) does not; the price is that null-space torques are not inertially decoupled from
+the tool, so they perturb the tool only transiently (J N tau ~ 0: no tool wrench, the tool
+equilibrium is unchanged).
+The posture spring through N is not a potential force; the passivity guarantee covers the
+task law, the orientation spring and all damping terms.
+
+Saturation scales the non-gravity part of tau by one factor s in (0, 1] until every joint is
+within its limit (clipping only if gravity alone exceeds a limit): the task torque keeps its
+direction, so a dissipative command stays dissipative. A non-finite input or result yields the
+hold torque g(q) - D_hold dq (last finite gravity torque if q is not finite) and a status.
+"""
+
+import dataclasses
+import math
+
+from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.geometry import rotation_log
+from dual_arm_control.core.validation import check_range, check_vector
+import numpy as np
+
+
+JOINTS = 7
+_INPUT_NAMES = ('q', 'dq', 'v_world_desired', 'w_world_desired', 'R_world_desired',
+                'contact_wrench')
+_INPUT_SHAPES = ((JOINTS,), (JOINTS,), (3,), (3,), (3, 3), (6,))
+_NO_WRENCH = np.zeros(6)
+_NO_WRENCH.flags.writeable = False
+
+
+@dataclasses.dataclass(frozen=True)
+class PassiveControllerConfig:
+    """
+    Gains of the passive-DS torque law; defaults within the reference setup's ranges (digest 7).
+
+    Vector fields are 7 numbers, joints A1..A7.
+    """
+
+    damping_along: float = 100.0
+    """lambda0, damping along the desired velocity [N s/m] (reference 70-150)."""
+    damping_across: float = 100.0
+    """lambda1, damping across the desired velocity [N s/m] (reference 70-150)."""
+    direction_blend_speed: float = 0.01
+    """Below about this desired speed D blends continuously to lambda1 I [m/s]."""
+    angular_damping: float = 6.0
+    """d_w, damping on w - w_d [N m s/rad] (reference 6)."""
+    orientation_stiffness: float = 10.0
+    """K_R, stiffness toward the desired orientation [N m/rad]."""
+    null_space_stiffness: tuple = (10.0,) * JOINTS
+    """K_n, posture stiffness [N m/rad]."""
+    null_space_damping: float = 1.0
+    """d_n, joint damping in the null space, same on every joint [N m s/rad]."""
+    null_space_error_limit: float = 0.4
+    """Per-joint posture error saturation [rad]."""
+    projector_damping: float = 1e-3
+    """eps of the damped pseudo-inverse in the null-space projector [m, rad]."""
+    hold_damping: tuple = (10.0, 10.0, 8.0, 8.0, 4.0, 2.0, 2.0)
+    """D_hold of the safety hold torque g(q) - D_hold dq [N m s/rad]."""
+
+    def __post_init__(self):
+        """Validate every field; raise ConfigError naming the field, value and range."""
+        check_range('damping_along', self.damping_along, 0.0, 1e4, 'N s/m', low_open=True)
+        check_range('damping_across', self.damping_across, 0.0, 1e4, 'N s/m', low_open=True)
+        check_range('direction_blend_speed', self.direction_blend_speed, 0.0, 10.0, 'm/s',
+                    low_open=True)
+        check_range('angular_damping', self.angular_damping, 0.0, 1e3, 'N m s/rad')
+        check_range('orientation_stiffness', self.orientation_stiffness, 0.0, 1e4, 'N m/rad')
+        check_range('null_space_error_limit', self.null_space_error_limit, 0.0, 10.0, 'rad',
+                    low_open=True)
+        check_range('projector_damping', self.projector_damping, 0.0, 1.0, '', low_open=True)
+        check_range('null_space_damping', self.null_space_damping, 0.0, 1e3, 'N m s/rad')
+        for name, unit in (('null_space_stiffness', 'N m/rad'), ('hold_damping', 'N m s/rad')):
+            values = check_vector(name, getattr(self, name), JOINTS, unit)
+            for index, value in enumerate(values):
+                check_range(f'{name}[{index}]', value, 0.0, 1e4, unit)
+            object.__setattr__(self, name, tuple(float(v) for v in values))
+
+
+@dataclasses.dataclass(frozen=True)
+class TorqueCommand:
+    """
+    Output of one controller tick.
+
+    torque: (7,) joint torques to send [N m], finite and within the limits.
+    task_wrench: (6,) [F; M] + w_c at the tool before saturation, world frame [N, N m]
+        (zeros on hold).
+    saturated: the torque limits scaled (or clipped) the command.
+    held: the hold torque was sent instead of the control law.
+    status: 'ok', 'saturated' or 'hold: <reason>'.
+    """
+
+    torque: np.ndarray
+    task_wrench: np.ndarray
+    saturated: bool
+    held: bool
+    status: str
+
+
+def passive_ds_damping_matrix(v_desired, damping_along, damping_across, blend_speed):
+    """
+    Return the (3, 3) damping D(v_d) [N s/m] of the passive DS, world frame.
+
+    D = Q diag(lambda0, lambda1, lambda1) Q^T with Q e1 = v_d / ||v_d||, written as
+    lambda1 I + (lambda0 - lambda1) v_d v_d^T / (||v_d||^2 + blend_speed^2): symmetric positive
+    definite, v_d stays an eigenvector, continuous everywhere and isotropic (lambda1 I) at
+    v_d = 0, equal to the Kronander-Billard matrix within (blend_speed / ||v_d||)^2.
+    """
+    v_desired = np.asarray(v_desired, dtype=float)
+    scale = (damping_along - damping_across) / (v_desired @ v_desired + blend_speed ** 2)
+    matrix = scale * np.outer(v_desired, v_desired)
+    matrix[np.diag_indices(3)] += damping_across
+    return matrix
+
+
+def passive_ds_force(v_world_tool, v_world_desired, config):
+    """
+    Return F = -D(v_d) (v - v_d) (3,) [N] of the passive DS (Kronander and Billard 2016).
+
+    D is passive_ds_damping_matrix(v_d, ...), applied without forming the matrix.
+    """
+    v_world_desired = np.asarray(v_world_desired, dtype=float)
+    error = v_world_desired - np.asarray(v_world_tool, dtype=float)
+    scale = ((config.damping_along - config.damping_across) * (v_world_desired @ error)
+             / (v_world_desired @ v_world_desired + config.direction_blend_speed ** 2))
+    return config.damping_across * error + scale * v_world_desired
+
+
+def orientation_error_vector(R_error):
+    """
+    Return the rotation vector (3,) [rad] of a rotation matrix, theta in [0, pi].
+
+    Same result as geometry.rotation_log, in scalar arithmetic for the torque loop; near
+    theta = pi it defers to rotation_log.
+    """
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R_error.tolist()
+    cos_theta = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
+    theta = math.acos(cos_theta)
+    if math.pi - theta < 1e-6:
+        return rotation_log(R_error)
+    factor = 0.5 if theta < 1e-9 else 0.5 * theta / math.sin(theta)
+    return np.array([factor * (r21 - r12), factor * (r02 - r20), factor * (r10 - r01)])
+
+
+def orientation_moment(w_world_tool, w_world_desired, R_world_tool, R_world_desired, config):
+    """
+    Return M (3,) [N m]: damping on w - w_d plus a stiffness toward R_world_desired.
+
+    M = -d_w (w - w_d) + K_R log(R_d R^T); the spring is the gradient of K_R theta^2 / 2 with
+    theta the angle between the two orientations, so it stores and returns energy only.
+    """
+    error = orientation_error_vector(R_world_desired @ R_world_tool.T)
+    return (config.angular_damping * (np.asarray(w_world_desired) - np.asarray(w_world_tool))
+            + config.orientation_stiffness * error)
+
+
+def hold_torque(gravity_torque, dq, hold_damping):
+    """Return g - D_hold dq (7,) [N m]; non-finite velocity entries contribute nothing."""
+    dq = np.asarray(dq, dtype=float)
+    damping = np.where(np.isfinite(dq), np.asarray(hold_damping) * dq, 0.0)
+    return np.asarray(gravity_torque, dtype=float) - damping
+
+
+def saturated_torque(gravity_torque, control_torque, torque_limits):
+    """
+    Return (tau (7,), saturated) with tau = g + s * control_torque within +-torque_limits.
+
+    s in [0, 1] is the largest factor keeping every joint within its limit; if gravity alone
+    violates a limit the result is clipped as well.
+    """
+    torque = gravity_torque + control_torque
+    if (np.abs(torque) <= torque_limits).all():
+        return torque, False
+    over = (np.abs(torque) > torque_limits) & (control_torque != 0.0)
+    factor = 1.0
+    if np.any(over):
+        headroom = torque_limits[over] - np.sign(control_torque[over]) * gravity_torque[over]
+        factor = float(np.clip(np.min(headroom / np.abs(control_torque[over])), 0.0, 1.0))
+    torque = np.clip(gravity_torque + factor * control_torque, -torque_limits, torque_limits)
+    return torque, True
+
+
+class PassiveController:
+    """
+    Passive-DS torque controller of one arm, state = null-space posture and last gravity torque.
+
+    model: an object with the ArmModel API (tool_pose, tool_jacobian, gravity_torque,
+    torque_limits); q_null: (7,) posture of the null-space spring [rad].
+    """
+
+    def __init__(self, model, q_null, config=None):
+        """Bind the arm model; read its torque limits once."""
+        self.model = model
+        self.config = PassiveControllerConfig() if config is None else config
+        self._torque_limits = np.asarray(model.torque_limits, dtype=float).copy()
+        self._null_stiffness = np.array(self.config.null_space_stiffness)
+        self._null_damping = float(self.config.null_space_damping)
+        self._hold_damping = np.array(self.config.hold_damping)
+        self._regulariser = self.config.projector_damping ** 2 * np.eye(6)
+        self.q_null = None
+        self.set_null_space_posture(q_null)
+        self.last_gravity_torque = np.zeros(JOINTS)
+
+    def set_null_space_posture(self, q_null):
+        """Set the posture [rad] (7,) the null-space spring pulls toward."""
+        q_null = np.array(q_null, dtype=float)
+        if q_null.shape != (JOINTS,) or not np.isfinite(q_null).all():
+            raise InputError(f'q_null must be {JOINTS} finite joint positions, got {q_null}')
+        q_null.flags.writeable = False
+        self.q_null = q_null
+
+    def null_space_torque(self, jacobian, q, dq):
+        """Return N tau_null (7,) [N m], the posture torque projected off the tool."""
+        limit = self.config.null_space_error_limit
+        error = np.minimum(np.maximum(q - self.q_null, -limit), limit)
+        torque = -self._null_stiffness * error - self._null_damping * dq
+        return torque - jacobian.T @ np.linalg.solve(
+            jacobian @ jacobian.T + self._regulariser, jacobian @ torque)
+
+    def torque_command(self, q, dq, v_world_desired, w_world_desired, R_world_desired,
+                       contact_wrench=None):
+        """
+        Return the TorqueCommand of one tick of the passive-DS law.
+
+        q, dq: (7,) measured joint positions [rad] and velocities [rad/s].
+        v_world_desired, w_world_desired: (3,) desired tool twist from the DS [m/s, rad/s].
+        R_world_desired: (3, 3) desired tool orientation.
+        contact_wrench: (6,) [f; m] the pad must apply on the object, world frame, moment
+            about the tool point [N, N m]; None = no contact.
+        Non-finite numbers never raise: the hold torque is returned with the reason in the
+        status. Misshaped inputs (a programming error) raise InputError.
+        """
+        q = np.asarray(q, dtype=float)
+        dq = np.asarray(dq, dtype=float)
+        v_world_desired = np.asarray(v_world_desired, dtype=float)
+        w_world_desired = np.asarray(w_world_desired, dtype=float)
+        R_world_desired = np.asarray(R_world_desired, dtype=float)
+        contact_wrench = (_NO_WRENCH if contact_wrench is None
+                          else np.asarray(contact_wrench, dtype=float))
+        inputs = (q, dq, v_world_desired, w_world_desired, R_world_desired, contact_wrench)
+        for array, shape, name in zip(inputs, _INPUT_SHAPES, _INPUT_NAMES):
+            if array.shape != shape:
+                raise InputError(f'{name} must have shape {shape}, got {array.shape}')
+        if np.isfinite(q).all():
+            gravity = self.model.gravity_torque(q)
+            if np.isfinite(gravity).all():
+                self.last_gravity_torque = gravity
+        if not np.isfinite(np.concatenate([a.ravel() for a in inputs])).all():
+            bad = [name for array, name in zip(inputs, _INPUT_NAMES)
+                   if not np.isfinite(array).all()]
+            return self._hold(dq, 'non-finite ' + ', '.join(bad))
+        _, R_world_tool = self.model.tool_pose(q)
+        jacobian = self.model.tool_jacobian(q)
+        twist = jacobian @ dq
+        task_wrench = np.concatenate((
+            passive_ds_force(twist[:3], v_world_desired, self.config),
+            orientation_moment(twist[3:], w_world_desired, R_world_tool, R_world_desired,
+                               self.config)))
+        task_wrench += contact_wrench
+        control = jacobian.T @ task_wrench + self.null_space_torque(jacobian, q, dq)
+        torque, saturated = saturated_torque(self.last_gravity_torque, control,
+                                             self._torque_limits)
+        if not np.isfinite(torque).all():
+            return self._hold(dq, 'non-finite control torque')
+        return TorqueCommand(torque=torque, task_wrench=task_wrench, saturated=saturated,
+                             held=False, status='saturated' if saturated else 'ok')
+
+    def _hold(self, dq, reason):
+        """Return the hold TorqueCommand (last gravity torque minus damping), saturated."""
+        torque = hold_torque(self.last_gravity_torque, dq, self._hold_damping)
+        torque = np.clip(np.nan_to_num(torque), -self._torque_limits, self._torque_limits)
+        return TorqueCommand(torque=torque, task_wrench=np.zeros(6), saturated=False,
+                             held=True, status=f'hold: {reason}')

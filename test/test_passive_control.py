@@ -1,0 +1,207 @@
+"""Passive-DS torque controller on the pinocchio models of both arms (iiwa7 left, iiwa14 right)."""
+
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.geometry import rotation_exp, rotation_log
+from dual_arm_control.core.passive_control import (
+    orientation_error_vector, passive_ds_damping_matrix, passive_ds_force, PassiveController,
+    PassiveControllerConfig, saturated_torque)
+from dual_arm_control.description.cell import arm_model, load_cell
+import numpy as np
+import pytest
+
+DT = 0.001  # s, semi-implicit Euler step of the forward-dynamics simulation
+ARMS = ('left', 'right')
+
+
+@pytest.fixture(scope='module')
+def cell():
+    return load_cell()
+
+
+@pytest.fixture(scope='module', params=ARMS)
+def arm(request, cell):
+    """Return (arm name, ArmModel, home posture) for each arm."""
+    return request.param, arm_model(request.param, cell), cell.arm(request.param).q_home
+
+
+def simulate(model, controller, q, dq, desired, seconds):
+    """Run the closed loop at 1 kHz; yield (q, dq, command) before each step."""
+    for _ in range(int(round(seconds / DT))):
+        command = controller.torque_command(q, dq, *desired(q))
+        yield q, dq, command
+        dq = dq + DT * model.forward_dynamics(q, dq, command.torque)
+        q = q + DT * dq
+
+
+def test_damping_matrix_is_kronander_billard_and_continuous():
+    along, across, blend = 150.0, 70.0, 0.01
+    v_desired = np.array([0.3, -0.4, 0.5])
+    matrix = passive_ds_damping_matrix(v_desired, along, across, blend)
+    np.testing.assert_allclose(matrix, matrix.T)
+    direction = v_desired / np.linalg.norm(v_desired)
+    expected_along = across + (along - across) * 0.5 / (0.5 + blend ** 2)
+    np.testing.assert_allclose(matrix @ direction, expected_along * direction, rtol=1e-12)
+    assert expected_along == pytest.approx(along, rel=1e-3)
+    orthogonal = np.cross(direction, [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(matrix @ orthogonal, across * orthogonal, atol=1e-12)
+    np.testing.assert_allclose(passive_ds_damping_matrix(np.zeros(3), along, across, blend),
+                               across * np.eye(3))
+    tiny = passive_ds_damping_matrix([1e-6, 0.0, 0.0], along, across, blend)
+    assert np.abs(tiny - across * np.eye(3)).max() < 1e-6
+    config = PassiveControllerConfig(damping_along=along, damping_across=across)
+    v = np.array([0.1, 0.2, -0.3])
+    np.testing.assert_allclose(passive_ds_force(v, v_desired, config),
+                               -matrix @ (v - v_desired), rtol=1e-12)
+
+
+def test_orientation_error_vector_matches_rotation_log():
+    rng = np.random.default_rng(0)
+    for angle in (0.0, 1e-10, 1e-4, 0.5, 2.0, 3.0, np.pi - 1e-8, np.pi):
+        axis = rng.normal(size=3)
+        rotation = rotation_exp(angle * axis / np.linalg.norm(axis))
+        np.testing.assert_allclose(orientation_error_vector(rotation), rotation_log(rotation),
+                                   atol=1e-9)
+
+
+def test_controller_uses_the_tool_point_twist(arm):
+    # Bug 7 of the digest had the sign of w x d wrong: the damping must act on the velocity of
+    # the tool point itself, which finite differences of tool_pose give independently.
+    _, model, q_home = arm
+    config = PassiveControllerConfig(orientation_stiffness=0.0, null_space_stiffness=(0.0,) * 7)
+    controller = PassiveController(model, q_home, config)
+    dq = np.array([0.3, -0.2, 0.4, 0.5, -0.6, 0.7, -0.8])
+    step = 1e-7
+    v_tool = (model.tool_pose(q_home + step * dq)[0]
+              - model.tool_pose(q_home - step * dq)[0]) / (2 * step)
+    command = controller.torque_command(q_home, dq, np.zeros(3), np.zeros(3), np.eye(3))
+    np.testing.assert_allclose(command.task_wrench[:3], -config.damping_across * v_tool,
+                               rtol=1e-6, atol=1e-6)
+
+
+def test_tracking_a_linear_ds_converges_to_the_target(arm):
+    name, model, q_home = arm
+    controller = PassiveController(model, q_home)
+    p_world_start, R_world_start = model.tool_pose(q_home)
+    target = p_world_start + np.array([0.10, -0.05, -0.15])
+    gain = 3.0  # 1/s
+
+    def desired(q):
+        return -gain * (model.tool_pose(q)[0] - target), np.zeros(3), R_world_start
+
+    limits = model.torque_limits
+    peak_ratio = 0.0
+    for q, dq, command in simulate(model, controller, q_home.copy(), np.zeros(7), desired, 3.0):
+        assert np.isfinite(command.torque).all() and not command.held
+        peak_ratio = max(peak_ratio, float(np.max(np.abs(command.torque) / limits)))
+    p_world_end, R_world_end = model.tool_pose(q)
+    assert np.linalg.norm(p_world_end - target) < 0.005, name
+    assert np.linalg.norm(rotation_log(R_world_start @ R_world_end.T)) < 0.02
+    assert peak_ratio <= 1.0
+
+
+def test_zero_desired_field_never_increases_energy(arm):
+    # Passivity: with v_d = w_d = 0, gravity compensated by the same model, the stored energy
+    # (kinetic, armature included, plus the orientation spring K_R theta^2 / 2) must not grow.
+    # The posture spring is off: projected through N it is not a potential force.
+    _, model, q_home = arm
+    config = PassiveControllerConfig(null_space_stiffness=(0.0,) * 7)
+    controller = PassiveController(model, q_home, config)
+    rng = np.random.default_rng(1)
+    R_world_desired = model.tool_pose(q_home)[1] @ rotation_exp([0.2, -0.1, 0.15])
+
+    def desired(q):
+        return np.zeros(3), np.zeros(3), R_world_desired
+
+    energies = []
+    start_velocity = rng.uniform(-0.5, 0.5, 7)
+    for q, dq, command in simulate(model, controller, q_home.copy(), start_velocity, desired,
+                                   2.0):
+        R_world_tool = model.tool_pose(q)[1]
+        angle = np.linalg.norm(rotation_log(R_world_desired @ R_world_tool.T))
+        energies.append(0.5 * dq @ model.mass_matrix(q) @ dq
+                        + 0.5 * config.orientation_stiffness * angle ** 2)
+        assert not command.saturated
+    increments = np.diff(energies)
+    assert increments.max() <= 1e-7   # J per 1 ms step: integration tolerance
+    assert energies[-1] < 0.01 * energies[0]
+
+
+def test_contact_wrench_is_pushed_with_its_own_sign(arm):
+    # At rest on the posture and orientation targets, the command minus gravity is J^T w_c:
+    # the robot applies +w_c on the object, as the QP asked.
+    _, model, q_home = arm
+    controller = PassiveController(model, q_home)
+    R_world_tool = model.tool_pose(q_home)[1]
+    contact_wrench = np.array([3.0, -2.0, 30.0, 0.2, -0.1, 0.05])
+    command = controller.torque_command(q_home, np.zeros(7), np.zeros(3), np.zeros(3),
+                                        R_world_tool, contact_wrench)
+    expected = (model.gravity_torque(q_home)
+                + model.tool_jacobian(q_home).T @ contact_wrench)
+    np.testing.assert_allclose(command.torque, expected, atol=1e-9)
+
+
+def test_null_space_torque_does_no_work_on_tool_motion(arm):
+    _, model, q_home = arm
+    controller = PassiveController(model, q_home)
+    rng = np.random.default_rng(2)
+    q = q_home + rng.uniform(-0.3, 0.3, 7)
+    jacobian = model.tool_jacobian(q)
+    torque = controller.null_space_torque(jacobian, q, rng.normal(size=7))
+    assert np.abs(jacobian @ torque).max() < 1e-4 * np.abs(torque).max()
+
+
+def test_saturation_scales_the_control_torque_within_limits():
+    rng = np.random.default_rng(3)
+    limits = np.array([176.0, 176.0, 110.0, 110.0, 110.0, 40.0, 40.0])
+    for _ in range(100):
+        gravity = rng.uniform(-0.5, 0.5, 7) * limits
+        control = rng.normal(size=7) * 300.0
+        torque, saturated = saturated_torque(gravity, control, limits)
+        assert np.all(np.abs(torque) <= limits + 1e-9)
+        if saturated:
+            factor = (torque - gravity) @ control / (control @ control)
+            assert 0.0 <= factor < 1.0
+            np.testing.assert_allclose(torque - gravity, factor * control, atol=1e-9)
+            assert np.isclose(np.abs(torque), limits).any()
+        else:
+            np.testing.assert_allclose(torque, gravity + control)
+
+
+def test_large_command_saturates_instead_of_exceeding_limits(arm):
+    _, model, q_home = arm
+    controller = PassiveController(model, q_home)
+    R_world_tool = model.tool_pose(q_home)[1]
+    command = controller.torque_command(q_home, np.zeros(7), [50.0, -40.0, 30.0],
+                                        [20.0, 0.0, 0.0], R_world_tool)
+    assert command.saturated and command.status == 'saturated'
+    assert np.all(np.abs(command.torque) <= model.torque_limits + 1e-9)
+
+
+@pytest.mark.parametrize('field', ['q', 'dq', 'v_world_desired', 'R_world_desired',
+                                   'contact_wrench'])
+def test_non_finite_input_returns_the_hold_torque(arm, field):
+    _, model, q_home = arm
+    hold_damping = np.array([10.0, 10.0, 8.0, 8.0, 4.0, 2.0, 2.0])
+    controller = PassiveController(model, q_home,
+                                   PassiveControllerConfig(hold_damping=tuple(hold_damping)))
+    dq = np.full(7, 0.1)
+    R_world_tool = model.tool_pose(q_home)[1]
+    controller.torque_command(q_home, dq, np.zeros(3), np.zeros(3), R_world_tool)
+    inputs = {'q': q_home.copy(), 'dq': dq.copy(), 'v_world_desired': np.zeros(3),
+              'w_world_desired': np.zeros(3), 'R_world_desired': R_world_tool.copy(),
+              'contact_wrench': np.zeros(6)}
+    inputs[field] = np.full_like(inputs[field], np.nan)
+    command = controller.torque_command(**inputs)
+    assert command.held and field in command.status
+    assert np.isfinite(command.torque).all()
+    assert np.all(np.abs(command.torque) <= model.torque_limits)
+    expected_damping = 0.0 if field == 'dq' else hold_damping * dq
+    np.testing.assert_allclose(command.torque,
+                               model.gravity_torque(q_home) - expected_damping, atol=1e-9)
+
+
+def test_invalid_config_is_refused():
+    with pytest.raises(ConfigError, match='damping_along'):
+        PassiveControllerConfig(damping_along=0.0)
+    with pytest.raises(ConfigError, match='null_space_stiffness'):
+        PassiveControllerConfig(null_space_stiffness=(1.0,) * 6)
