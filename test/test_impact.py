@@ -245,9 +245,11 @@ def test_arm_pushed_off_its_line_mid_run_still_arrives_with_the_other():
     """
     A 1 cm lateral push 0.1 m before contact is only partly undone by contact (exp(-1)).
 
-    The lateral residual r (up to 4 mm) moves the face-plane crossing by up to
-    r |n . e_lateral| / (v n . e1) = 4 mm * 0.64 / (0.45 m/s * 0.77) = 7.4 ms, so the bound
-    here is 10 ms; progress along e1 itself stays synchronised (previous test).
+    With the 2 cm wide normal region (sized for the torque-controlled arms' tracking error)
+    the lateral residual r stays below 6 mm; it moves the face-plane crossing by up to
+    r |n . e_lateral| / (v n . e1), about 10 ms at 6 mm, hence the bounds; progress along e1
+    itself stays synchronised (previous test). The residual also tilts the arrival direction:
+    up to 4 deg after a push (2 deg without pushes, Proposition 2 test).
     """
     geometry, impact = paper_geometry()
     for push in ([0.0, 0.015, 0.0], [0.0, 0.0, -0.01], [-0.005, 0.01, 0.0], [0.0, 0.01, 0.01]):
@@ -256,9 +258,9 @@ def test_arm_pushed_off_its_line_mid_run_still_arrives_with_the_other():
         print(f'left arm pushed by {push} m mid-run: gap {gap * 1e3:.2f} ms, contact point '
               f'{position * 1e3:.2f} mm, speed {speed * 100:.2f} %, direction {angle:.2f} deg')
         assert gap < 0.010
-        assert position < 0.005
+        assert position < 0.006
         assert speed < 0.02
-        assert angle < 2.0
+        assert angle < 4.0
 
 
 def test_decoupled_arms_do_not_arrive_together():
@@ -282,8 +284,13 @@ def test_impact_ds_is_the_desired_velocity_on_both_lines():
     geometry, impact = paper_geometry()
     x = (geometry.transitory.reshape(2, 3) + 0.1 * geometry.bases[:, :, 0]).reshape(6)
     output = impact_ds_velocity(x, geometry)
-    assert output.activation.gamma[0] > 0.999
-    np.testing.assert_allclose(output.velocity, geometry.desired_velocity, atol=2e-4)
+    activation = output.activation.alpha[0] * output.activation.gamma[0]
+    assert activation > 0.999
+    # Eqs. 3 and 6 on the line: the velocity blends x_dot_d with f_n with weight alpha gamma,
+    # so it differs from x_dot_d by at most (1 - alpha gamma) (|x_dot_d| + |f_n|).
+    speed = np.linalg.norm(geometry.desired_velocity.reshape(2, 3), axis=1).max()
+    bound = (1.0 - activation) * (speed + np.linalg.norm(output.nominal)) + 1e-9
+    np.testing.assert_allclose(output.velocity, geometry.desired_velocity, atol=bound)
 
 
 def test_impact_ds_far_away_is_the_nominal_field():

@@ -38,21 +38,21 @@ class ModulationRegionConfig:
         rho with slope * (delta - rho) >= ln 99 so that phi_radial >= 0.99 at the target.
         Default 0.25.
     normal_distance: delta_normal [m], radius of the cylinder around the line through x_t
-        along e1 inside which the desired velocity is applied. Default 0.01.
+        along e1 inside which the desired velocity is applied. Default 0.02: wide enough that
+        the torque-controlled arms (tracking within 1-2 cm at 0.5 m/s) enter the region
+        instead of dithering around x_t (measured in the MuJoCo twin).
     tangent_distance: delta_tangent [m], half-length along e1 around the target x_d inside
         which the contact activation kappa is on. Default 0.015 (reference).
     radial_slope, normal_slope, tangent_slope: a_i [1/m] of the logistic activations.
-        Defaults 200, 1000, 400 (the reference's 200, 600, 400 with a steeper normal slope, so
-        that gamma > 0.9998 once the arm is within 1.3 mm of its line: the speed along e1 at
-        contact is then the desired one to 0.1 % even without speed shaping).
+        Defaults 200, 400, 400 (the reference: 200, 300, 400 in this logistic's units).
     """
 
     transitory_distance: float = 0.20
     radial_distance: float = 0.25
-    normal_distance: float = 0.01
+    normal_distance: float = 0.02
     tangent_distance: float = 0.015
     radial_slope: float = 200.0
-    normal_slope: float = 1000.0
+    normal_slope: float = 400.0
     tangent_slope: float = 400.0
 
     def __post_init__(self):

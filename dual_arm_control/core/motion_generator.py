@@ -1,0 +1,353 @@
+"""
+The dual-arm motion generator: one tick of phases, contact, reach-with-impact and object DS.
+
+Composes the paper's pieces into the per-arm commands of one DS tick (section II-III, appendix
+A): FT compensation and contact detection, the phase machine, the coordinated modulated DS with
+impact (eqs. 1-6), the object DS of the task (eqs. 7-9, lift, place), the orientation DS, and
+release / retract motions. Time enters as dt; nothing reads a clock.
+"""
+
+from dataclasses import dataclass, field, replace
+
+from dual_arm_control.contract import ARMS
+from dual_arm_control.core.contact import (ContactConfig, ContactDetector, FtBiasEstimator,
+                                           FtCompensationConfig)
+from dual_arm_control.core.cooperative import CoordinationConfig
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.grasp import grasp_frame
+from dual_arm_control.core.impact import (impact_direction, impact_ds_velocity,
+                                          impact_geometry, ImpactConfig, max_impact_tilt)
+from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
+                                                lift_velocity, LiftConfig, place_velocity,
+                                                PlaceConfig, release_velocity, toss_geometry,
+                                                toss_velocity, TossConfig)
+from dual_arm_control.core.orientation import (intermediate_target_orientation,
+                                               orientation_coupling,
+                                               orientation_ds_angular_velocity,
+                                               OrientationDsConfig)
+from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, PhaseMachine,
+                                          Task, task_from_name)
+from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
+                                                 boosted_velocity, reach_speed,
+                                                 saturated_velocity, SpeedFilter,
+                                                 SpeedProfileConfig)
+from dual_arm_control.core.validation import check_range, check_vector, finite_array
+import numpy as np
+
+_TOSS_TASKS = (Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS)
+
+
+@dataclass(frozen=True)
+class MotionGeneratorConfig:
+    """
+    Everything the motion generator needs besides its inputs (SI units).
+
+    Fields:
+        task: Task or its name.
+        object_size: (3,) m, box edges along object x, y (squeeze), z.
+        standby_positions: (2, 3) m, tool standby positions, rows left, right.
+        standby_rotations: (2, 3, 3), tool standby orientations in the world.
+        standby_gain: 1/s, > 0; per-arm point attractor gain toward standby (and on retract).
+        max_linear_speed: m/s, > 0; every tool velocity command is capped to this.
+        release_opening_speed: m/s, > 0; pads move apart along their normals at release.
+        toss_speed_time_constant: s, > 0; the object's desired speed rises from the impact speed
+            to the toss speed with this time constant after contact.
+        coordination, impact, toss, lift, place, speed, orientation, phases, contact, ft: the
+            component configs (see their modules).
+
+    """
+
+    task: object = Task.PICK_AND_TOSS
+    object_size: tuple = (0.2, 0.2, 0.2)
+    standby_positions: tuple = ((0.35, 0.31, 0.80), (0.35, -0.31, 0.80))
+    standby_rotations: tuple = (tuple(map(tuple, np.eye(3))), tuple(map(tuple, np.eye(3))))
+    standby_gain: float = 3.0
+    max_linear_speed: float = 1.1
+    release_opening_speed: float = 0.3
+    toss_speed_time_constant: float = 0.05
+    coordination: CoordinationConfig = field(default_factory=CoordinationConfig)
+    impact: ImpactConfig = field(default_factory=ImpactConfig)
+    toss: TossConfig = field(default_factory=TossConfig)
+    lift: LiftConfig = field(default_factory=LiftConfig)
+    place: PlaceConfig = field(default_factory=PlaceConfig)
+    speed: SpeedProfileConfig = field(default_factory=SpeedProfileConfig)
+    orientation: OrientationDsConfig = field(default_factory=OrientationDsConfig)
+    phases: PhaseConfig = field(default_factory=PhaseConfig)
+    contact: ContactConfig = field(default_factory=ContactConfig)
+    ft: FtCompensationConfig = field(default_factory=FtCompensationConfig)
+
+    def __post_init__(self):
+        object.__setattr__(self, 'task', task_from_name(self.task))
+        size = check_vector('object_size', self.object_size, 3, 'm')
+        if np.any(size <= 0.0):
+            raise ConfigError(f'object_size must be positive [m], got {size.tolist()}')
+        object.__setattr__(self, 'object_size', tuple(size))
+        positions = np.asarray(self.standby_positions, dtype=float)
+        rotations = np.asarray(self.standby_rotations, dtype=float)
+        if positions.shape != (2, 3) or rotations.shape != (2, 3, 3):
+            raise ConfigError('standby_positions must be (2, 3) and standby_rotations (2, 3, 3)')
+        for rotation in rotations:
+            if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6):
+                raise ConfigError('standby_rotations must be rotation matrices')
+        check_range('standby_gain', self.standby_gain, 0.0, 100.0, '1/s', low_open=True)
+        check_range('max_linear_speed', self.max_linear_speed, 0.0, 3.0, 'm/s', low_open=True)
+        check_range('release_opening_speed', self.release_opening_speed, 0.0, 2.0, 'm/s',
+                    low_open=True)
+        check_range('toss_speed_time_constant', self.toss_speed_time_constant, 0.0, 5.0, 's',
+                    low_open=True)
+
+
+@dataclass(frozen=True)
+class ArmMeasurement:
+    """
+    What one arm reports to the motion generator.
+
+    Fields: p_world_tool (3,) m and R_world_tool (3, 3), the tool frame; ft_wrench_sensor (6,)
+    [N, N m], the raw Net F/T reading (wrench the tool applies to the sensor, sensor frame);
+    R_world_sensor (3, 3).
+    """
+
+    p_world_tool: np.ndarray
+    R_world_tool: np.ndarray
+    ft_wrench_sensor: np.ndarray
+    R_world_sensor: np.ndarray
+
+
+@dataclass(frozen=True)
+class ObjectMeasurement:
+    """Estimated object state: p_world_object (3,) m, R_world_object, v_world_object m/s."""
+
+    p_world_object: np.ndarray
+    R_world_object: np.ndarray
+    v_world_object: np.ndarray
+
+
+@dataclass(frozen=True)
+class ArmCommand:
+    """
+    DS command for one arm: desired tool twist and orientation, and its current attractor.
+
+    Fields: v_world (3,) m/s, w_world (3,) rad/s, R_world_desired (3, 3), p_world_attractor (3,)
+    m (grasp point while reaching, standby while retracting).
+    """
+
+    v_world: np.ndarray
+    w_world: np.ndarray
+    R_world_desired: np.ndarray
+    p_world_attractor: np.ndarray
+
+
+@dataclass(frozen=True)
+class MotionOutput:
+    """
+    Result of one tick.
+
+    Fields: phase (PhaseMachineOutput); commands {arm: ArmCommand}; object_velocity (3,) m/s and
+    object_angular_velocity (3,) rad/s, the desired object twist; contacts {arm: ContactState};
+    pad_forces {arm: (3,) N, compensated force of the pad on the object, world}; grasp_frames
+    {arm: GraspFrame}; impact_directions {arm: (3,)}; release_position (3,) m and
+    release_velocity (3,) m/s of toss tasks (None otherwise).
+    """
+
+    phase: object
+    commands: dict
+    object_velocity: np.ndarray
+    object_angular_velocity: np.ndarray
+    contacts: dict
+    pad_forces: dict
+    grasp_frames: dict
+    impact_directions: dict
+    release_position: object
+    release_velocity: object
+
+
+class DualArmMotionGenerator:
+    """Stateful motion generator: call step() once per DS tick with dt in seconds."""
+
+    def __init__(self, config):
+        self._config = config
+        self._phase_machine = PhaseMachine(config.phases, config.task)
+        self._ft = {arm: FtBiasEstimator(config.ft) for arm in ARMS}
+        self._contact = {arm: ContactDetector(config.contact) for arm in ARMS}
+        self._reach_speed = SpeedFilter(config.speed.time_constant)
+        self._object_speed = SpeedFilter(config.toss_speed_time_constant)
+        self._standby_positions = np.asarray(config.standby_positions, dtype=float)
+        self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
+        self._toss_geometry = toss_geometry(config.toss, config.coordination)
+        self._release_velocity = release_velocity(config.toss)
+        self._max_tilt = max_impact_tilt(config.impact)
+        self._release_object_velocity = np.zeros(3)
+
+    @property
+    def config(self):
+        """Return the current configuration."""
+        return self._config
+
+    @property
+    def phase(self):
+        """Return the current Phase."""
+        return self._phase_machine.phase
+
+    def reconfigure(self, config):
+        """Apply a new configuration at the next tick; the phase and filters are kept."""
+        self._config = config
+        self._phase_machine.select_task(config.task)
+        self._toss_geometry = toss_geometry(config.toss, config.coordination)
+        self._release_velocity = release_velocity(config.toss)
+        self._max_tilt = max_impact_tilt(config.impact)
+        self._standby_positions = np.asarray(config.standby_positions, dtype=float)
+        self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
+
+    def step(self, arms, obj, dt, start_episode=False, go_home=False, reset=False):
+        """
+        Advance one tick of dt seconds and return the MotionOutput.
+
+        arms: {arm: ArmMeasurement}; obj: ObjectMeasurement (the tracker's estimate).
+        """
+        config = self._config
+        p_tools = np.array([finite_array('p_world_tool', arms[arm].p_world_tool, (3,))
+                            for arm in ARMS])
+        R_tools = [finite_array('R_world_tool', arms[arm].R_world_tool, (3, 3)) for arm in ARMS]
+        p_object = finite_array('p_world_object', obj.p_world_object, (3,))
+        v_object = finite_array('v_world_object', obj.v_world_object, (3,))
+        R_object = finite_array('R_world_object', obj.R_world_object, (3, 3))
+        frames = {arm: grasp_frame(arm, p_object, R_object, config.object_size) for arm in ARMS}
+        pad_forces, contacts = {}, {}
+        for index, arm in enumerate(ARMS):
+            compensated = self._ft[arm].update(arms[arm].ft_wrench_sensor,
+                                               arms[arm].R_world_sensor, dt)
+            pad_forces[arm] = compensated.wrench_world[:3]
+            contacts[arm] = self._contact[arm].update(
+                pad_forces[arm], p_tools[index], R_tools[index], frames[arm].p_world_grasp,
+                frames[arm].normal, dt)
+        phase_output = self._phase_machine.update(PhaseInputs(
+            p_world_tool_left=p_tools[0], p_world_tool_right=p_tools[1],
+            p_world_object=p_object, v_world_object=v_object,
+            contact_left=contacts['left'], contact_right=contacts['right'],
+            p_world_release=self._toss_geometry.release_position,
+            v_world_release=self._release_velocity,
+            p_world_place=np.asarray(config.place.position, dtype=float),
+            p_world_lift=np.asarray(config.lift.position, dtype=float),
+            p_world_standby_left=self._standby_positions[0],
+            p_world_standby_right=self._standby_positions[1],
+            start_episode=start_episode, go_home=go_home, reset=reset), dt)
+        phase = phase_output.phase
+        if phase_output.transition is not None and phase is Phase.REACH:
+            self._reach_speed.reset(0.0)
+        object_velocity = self._object_velocity(p_object, phase, dt)
+        directions = {arm: impact_direction(frames[arm].normal, object_velocity, self._max_tilt)
+                      for arm in ARMS}
+        if phase is Phase.REACH:
+            commands = self._reach(p_tools, R_tools, frames, directions, dt)
+        elif phase in (Phase.CONTACT, Phase.MANIPULATE):
+            commands = self._carry(p_tools, R_tools, frames, object_velocity)
+            self._release_object_velocity = object_velocity
+        elif phase is Phase.RELEASE:
+            commands = self._open_hands(R_tools, frames)
+        else:
+            commands = self._standby(p_tools, R_tools)
+        toss = config.task in _TOSS_TASKS
+        return MotionOutput(
+            phase=phase_output, commands=commands, object_velocity=object_velocity,
+            object_angular_velocity=np.zeros(3), contacts=contacts, pad_forces=pad_forces,
+            grasp_frames=frames, impact_directions=directions,
+            release_position=self._toss_geometry.release_position if toss else None,
+            release_velocity=self._release_velocity if toss else None)
+
+    def _object_velocity(self, p_object, phase, dt):
+        """Return the desired object velocity (3,) m/s of the task's object DS (eqs. 7-9)."""
+        config = self._config
+        if config.task in _TOSS_TASKS:
+            direction = toss_velocity(p_object, self._toss_geometry).velocity
+            if phase in (Phase.CONTACT, Phase.MANIPULATE):
+                speed = self._object_speed.update(config.toss.toss_speed, dt)
+            else:
+                self._object_speed.reset(config.impact.impact_speed)
+                speed = self._object_speed.speed
+            return boosted_velocity(direction, speed)
+        if config.task is Task.PICK_AND_PLACE:
+            return place_velocity(p_object, config.place, config.coordination)
+        return lift_velocity(p_object, config.lift, config.coordination)
+
+    def _reach(self, p_tools, R_tools, frames, directions, dt):
+        """Return the coordinated reach-with-impact commands (eqs. 1-6, Proposition 2)."""
+        config = self._config
+        grasp_points = np.array([frames[arm].p_world_grasp for arm in ARMS])
+        geometry = impact_geometry(grasp_points, np.array([directions[arm] for arm in ARMS]),
+                                   config.coordination, config.impact)
+        x = p_tools.reshape(6)
+        field_output = impact_ds_velocity(x, geometry)
+        distance = float(np.max(np.linalg.norm(p_tools - grasp_points, axis=1)))
+        target_speed = reach_speed(distance, config.impact.impact_speed, config.speed)
+        speed = self._reach_speed.update(target_speed, dt)
+        velocity = boosted_coordinated_velocity(field_output.velocity, speed).reshape(2, 3)
+        velocity = saturated_velocity(velocity, config.max_linear_speed)
+        eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
+                                   config.orientation)
+        commands = {}
+        for index, arm in enumerate(ARMS):
+            R_target = intermediate_target_orientation(self._standby_rotations[index],
+                                                       frames[arm].R_world_grasp, eta)
+            commands[arm] = ArmCommand(
+                velocity[index],
+                orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
+                R_target, grasp_points[index])
+        return commands
+
+    def _carry(self, p_tools, R_tools, frames, object_velocity):
+        """Return the commands that carry the object with the desired object velocity."""
+        config = self._config
+        grasp_points = np.array([frames[arm].p_world_grasp for arm in ARMS])
+        velocity = cooperative_manipulation_velocity(
+            p_tools.reshape(6), object_velocity, np.zeros(3), grasp_points,
+            config.coordination).reshape(2, 3)
+        velocity = saturated_velocity(velocity, config.max_linear_speed)
+        commands = {}
+        for index, arm in enumerate(ARMS):
+            R_target = frames[arm].R_world_grasp
+            commands[arm] = ArmCommand(
+                velocity[index],
+                orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
+                R_target, grasp_points[index])
+        return commands
+
+    def _open_hands(self, R_tools, frames):
+        """Return the release commands: keep the release velocity, pull the pads off the faces."""
+        config = self._config
+        commands = {}
+        for index, arm in enumerate(ARMS):
+            normal = frames[arm].normal
+            velocity = self._release_object_velocity - config.release_opening_speed * normal
+            velocity = saturated_velocity(velocity, config.max_linear_speed)
+            R_target = frames[arm].R_world_grasp
+            commands[arm] = ArmCommand(
+                velocity,
+                orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
+                R_target, frames[arm].p_world_grasp)
+        return commands
+
+    def _standby(self, p_tools, R_tools):
+        """Return independent point-attractor commands toward each arm's standby pose."""
+        config = self._config
+        commands = {}
+        for index, arm in enumerate(ARMS):
+            target = self._standby_positions[index]
+            velocity = saturated_velocity(-config.standby_gain * (p_tools[index] - target),
+                                          config.max_linear_speed)
+            R_target = self._standby_rotations[index]
+            commands[arm] = ArmCommand(
+                velocity,
+                orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
+                R_target, target)
+        return commands
+
+
+def with_task_speeds(config, impact_speed=None, toss_speed=None, reach_speed_value=None):
+    """Return config with the scenario's task speeds [m/s] applied to its components."""
+    if impact_speed is not None:
+        config = replace(config, impact=replace(config.impact, impact_speed=impact_speed))
+    if toss_speed is not None:
+        config = replace(config, toss=replace(config.toss, toss_speed=toss_speed))
+    if reach_speed_value is not None:
+        config = replace(config, speed=replace(config.speed, reach_speed=reach_speed_value))
+    return config

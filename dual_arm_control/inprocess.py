@@ -1,0 +1,119 @@
+"""
+Single-process episode runner: the twin and the whole controller pipeline in one loop.
+
+Runs the same core objects the nodes wrap, at the graph's rates (FRI period for the torque
+controllers, 200 Hz for tracker-to-DS and the wrench QP), with the same one-way information
+flow. For tuning, benchmarks and fast tests; the product runs the nodes
+(`dual_arm_bringup`). Deterministic for a given scenario and seed.
+"""
+
+from dataclasses import dataclass, field
+
+from dual_arm_control.contract import ARMS
+from dual_arm_control.core.geometry import quat_xyzw_to_matrix
+from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
+                                                    ObjectMeasurement)
+from dual_arm_control.core.passive_control import PassiveController, PassiveControllerConfig
+from dual_arm_control.core.tracker import ObjectTracker, TrackerConfig
+from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
+from dual_arm_control.pipeline import (motion_config_for_scenario, tick_due, WrenchDistributor,
+                                       WrenchDistributorConfig)
+import numpy as np
+from sim_bridge.twin import DualArmTwin
+
+START_TIME = 0.3
+
+
+@dataclass(frozen=True)
+class RunnerConfig:
+    """Rates and component configs of an in-process run (periods in seconds)."""
+
+    fri_period: float = 0.002
+    ds_period: float = 0.005
+    start_time: float = START_TIME
+    motion_base: object = None
+    controller: PassiveControllerConfig = field(default_factory=PassiveControllerConfig)
+    wrench: WrenchDistributorConfig = field(default_factory=WrenchDistributorConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+
+
+@dataclass
+class EpisodeLog:
+    """What an in-process run produced: ground truth and the controller's own record."""
+
+    trajectory: dict
+    phases: list = field(default_factory=list)
+    commands: list = field(default_factory=list)
+
+
+def run_episode(scenario, config=None, cell=None, duration=None):
+    """Run one episode of scenario and return its EpisodeLog."""
+    config = RunnerConfig() if config is None else config
+    cell = load_cell() if cell is None else cell
+    twin = DualArmTwin(scenario, cell, fri_period=config.fri_period)
+    models = {arm: arm_model(arm, cell) for arm in ARMS}
+    controllers = {arm: PassiveController(models[arm], cell.arm(arm).q_home, config.controller)
+                   for arm in ARMS}
+    motion_config = motion_config_for_scenario(scenario, cell, config.motion_base)
+    generator = DualArmMotionGenerator(motion_config)
+    distributor = WrenchDistributor(config.wrench, scenario.object.mass, scenario.object.size)
+    tracker = ObjectTracker(config.tracker)
+    recorder = TrajectoryRecorder()
+    log = EpisodeLog(trajectory={})
+    duration = scenario.duration if duration is None else duration
+    last_tick = None
+    output = None
+    wrenches = {arm: np.zeros(6) for arm in ARMS}
+    torques = {arm: np.zeros(7) for arm in ARMS}
+    started = False
+    while twin.time < duration - 1e-9:
+        t = twin.time
+        for sample in twin.mocap_samples():
+            tracker.update(sample.stamp, sample.p_world, sample.quat_xyzw)
+        joints = {arm: twin.joint_state(arm) for arm in ARMS}
+        if tick_due(t, last_tick, config.ds_period):
+            dt = config.ds_period if last_tick is None else t - last_tick
+            last_tick = t
+            estimate = tracker.state(t)
+            if estimate is not None:
+                start = not started and t >= config.start_time - 1e-9
+                started = started or start
+                output, wrenches = _ds_tick(generator, distributor, models, joints, twin,
+                                            estimate, dt, start)
+                log.phases.append((t, output.phase.phase.value))
+        for arm in ARMS:
+            if output is None:
+                torques[arm] = twin.hold_torques(arm)
+                continue
+            command = output.commands[arm]
+            result = controllers[arm].torque_command(
+                joints[arm].position, joints[arm].velocity, command.v_world, command.w_world,
+                command.R_world_desired, wrenches[arm])
+            torques[arm] = result.torque
+        report = twin.step(torques)
+        recorder.counters['torque_clamp_count'] += sum(report.clamped.values())
+        recorder.append(twin, torques)
+    log.trajectory = recorder.arrays()
+    return log
+
+
+def _ds_tick(generator, distributor, models, joints, twin, estimate, dt, start):
+    """Run the DS and the wrench QP for one 200 Hz tick; return (MotionOutput, wrenches)."""
+    arms = {}
+    p_tools, R_tools = {}, {}
+    for arm in ARMS:
+        q = joints[arm].position
+        p_tools[arm], R_tools[arm] = models[arm].tool_pose(q)
+        _, R_world_sensor = models[arm].sensor_pose(q)
+        force, torque = twin.ft_wrench(arm)
+        arms[arm] = ArmMeasurement(p_tools[arm], R_tools[arm], np.concatenate((force, torque)),
+                                   R_world_sensor)
+    R_object = quat_xyzw_to_matrix(estimate.quat_xyzw)
+    obj = ObjectMeasurement(estimate.position, R_object, estimate.linear_velocity)
+    output = generator.step(arms, obj, dt, start_episode=start)
+    distributed = distributor.step(
+        output.phase.phase, p_tools, R_tools, estimate.position, R_object,
+        estimate.linear_velocity, estimate.angular_velocity, output.object_velocity,
+        output.object_angular_velocity, dt)
+    return output, distributed.wrenches
