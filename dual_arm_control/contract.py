@@ -13,7 +13,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, String
+from std_msgs.msg import Bool
 from visualization_msgs.msg import MarkerArray
 
 ARMS = ('left', 'right')
@@ -29,9 +29,9 @@ CONTROL_QOS = QoSProfile(
 SENSOR_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE)
-# The phase is a state: a late subscriber gets the last one.
+# The phase is a state: a late subscriber gets the latest ones; every tick's is delivered.
 LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -69,7 +69,8 @@ OBJECT_STATE = Topic('/object/state', Odometry, CONTROL_QOS)
 DS_COMMAND = Topic('ds_command', Odometry, CONTROL_QOS, per_arm=True)
 CONTACT_WRENCH = Topic('contact_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
 OBJECT_DESIRED_TWIST = Topic('/object/desired_twist', TwistStamped, CONTROL_QOS)
-PHASE = Topic('/dual_arm/phase', String, LATCHED_QOS)
+# One stamped status per DS tick: message = phase, values = task, time in phase, events, reason.
+PHASE = Topic('/dual_arm/phase', DiagnosticArray, LATCHED_QOS)
 MARKERS = Topic('/dual_arm/markers', MarkerArray, SENSOR_QOS)
 GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, SENSOR_QOS)
 GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, SENSOR_QOS,
@@ -88,3 +89,7 @@ ALL_TOPICS = (
 # Services of the bridge (std_srvs/Trigger) and their names.
 SIM_RESET_SERVICE = '/sim/reset'
 SIM_MOVE_OBJECT_SERVICE = '/sim/move_object'
+# Services of the motion generator (std_srvs/Trigger).
+START_EPISODE_SERVICE = '/dual_arm/start_episode'
+GO_HOME_SERVICE = '/dual_arm/go_home'
+RESET_EPISODE_SERVICE = '/dual_arm/reset'

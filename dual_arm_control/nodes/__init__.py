@@ -1,0 +1,1 @@
+"""The rclpy node shells: they translate messages and parameters and call the core."""
