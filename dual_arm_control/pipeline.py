@@ -127,9 +127,8 @@ class WrenchDistributor:
             result = self._qp.contact_wrenches(object_wrench, p_world_object, contacts)
         except SolverError as error:
             return DistributedWrenches(zero, object_wrench, self._gain, False, str(error))
-        wrenches = {arm: self._gain * wrench_about_tool(result.wrenches[arm],
-                                                          contacts[arm].p_world_contact,
-                                                          p_world_tools[arm])
-                    for arm in ARMS}
+        wrenches = {arm: self._gain * wrench_about_tool(
+            result.wrenches[arm], contacts[arm].p_world_contact, p_world_tools[arm])
+            for arm in ARMS}
         return DistributedWrenches(wrenches, object_wrench, self._gain, result.feasible,
                                    result.status)

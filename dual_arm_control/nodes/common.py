@@ -1,7 +1,8 @@
 """
-What every node shell shares: time stamps, the lockstep tick schedule, message conversions
-with validation, refusal counting and the Jazzy process lifetime.
+What every node shell shares.
 
+Time stamps, the lockstep tick schedule, message conversions with validation, refusal counting
+and the Jazzy process lifetime.
 Times travel as integer nanoseconds inside the nodes so that schedules computed in different
 processes agree exactly.
 """
@@ -197,4 +198,3 @@ def run_node(node_factory, name, args=None):
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
-
