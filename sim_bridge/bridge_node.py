@@ -32,12 +32,12 @@ import math
 import sys
 import time
 
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import ConfigError, DualArmControlError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
+from dual_arm_control.nodes.common import seconds_to_ns, stamp_ns, time_msg
 from dual_arm_control.resources import config_path
 from dual_arm_control.scenario import load_scenario
 import numpy as np
@@ -53,7 +53,6 @@ from std_srvs.srv import Trigger
 MODES = ('lockstep', 'realtime')
 FRI_PERIODS = (0.001, 0.002, 0.005)
 REFUSAL_REASONS = ('non_finite', 'wrong_length', 'joint_names')
-NANOSECONDS_PER_SECOND = 1_000_000_000
 # A realtime cycle is late when it starts more than this fraction of a period after its due time.
 LATE_CYCLE_TOLERANCE = 0.5
 # Wall time between repeated warnings of the same kind [s].
@@ -62,22 +61,6 @@ LOG_THROTTLE_PERIOD = 1.0
 WAITING_WARNING_DELAY = 2.0
 MAX_DURATION = 1.0e6
 MAX_OBJECT_DISPLACEMENT = 2.0
-
-
-def time_msg(stamp_ns):
-    """Return a builtin_interfaces/Time for a time in integer nanoseconds."""
-    seconds, nanoseconds = divmod(int(stamp_ns), NANOSECONDS_PER_SECOND)
-    return Time(sec=seconds, nanosec=nanoseconds)
-
-
-def stamp_ns(stamp):
-    """Return a builtin_interfaces/Time as integer nanoseconds."""
-    return stamp.sec * NANOSECONDS_PER_SECOND + stamp.nanosec
-
-
-def seconds_to_ns(seconds):
-    """Return a time in seconds as integer nanoseconds (rounded, so 0.002 * k stays exact)."""
-    return int(round(seconds * NANOSECONDS_PER_SECOND))
 
 
 def command_refusal(names, efforts, expected_names):
@@ -169,6 +152,10 @@ class SimBridge(Node):
         self._duration = self.get_parameter('duration').value
         self._trajectory_log = self.get_parameter('trajectory_log').value
         self._republish_period = self.get_parameter('lockstep_republish_period').value
+        self._wait_for_tracker = (self.mode == 'lockstep'
+                                  and self.get_parameter('lockstep_wait_for_tracker').value)
+        self._mocap_samples = []
+        self._awaited_tracker_ns = set()
         self._diagnostics_period_ns = seconds_to_ns(
             self.get_parameter('diagnostics_period').value)
         self._ground_truth_period_ns = seconds_to_ns(
@@ -247,6 +234,11 @@ class SimBridge(Node):
             _descriptor('lockstep: wall time without answers after which the state is '
                         'published again [s]', read_only=True, floating_range=(0.01, 10.0)))
         self.declare_parameter(
+            'lockstep_wait_for_tracker', False,
+            _descriptor('lockstep: publish the mocap samples of a cycle first and the rest of '
+                        'the state only after the object tracker answered each of them (an '
+                        '/object/state with the stamp of the sample)', read_only=True))
+        self.declare_parameter(
             'diagnostics_period', 1.0,
             _descriptor('sim time between /diagnostics messages [s]',
                         floating_range=(0.01, 100.0)))
@@ -280,6 +272,10 @@ class SimBridge(Node):
                                               self._on_reset)
         self._move_srv = self.create_service(Trigger, contract.SIM_MOVE_OBJECT_SERVICE,
                                              self._on_move_object)
+        if self._wait_for_tracker:
+            self._tracker_sub = self.create_subscription(
+                contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
+                self._on_tracker_answer, contract.OBJECT_STATE.qos)
 
     # -- parameters ------------------------------------------------------------------------------
 
@@ -351,15 +347,30 @@ class SimBridge(Node):
             self._last_warning_wall[key] = now
             self.get_logger().warning(message)
 
+    def _on_tracker_answer(self, msg):
+        """Lockstep: count the tracker's answer to a mocap sample; go on when all are in."""
+        if not self._awaited_tracker_ns:
+            return
+        self._awaited_tracker_ns.discard(stamp_ns(msg.header.stamp))
+        if not self._awaited_tracker_ns:
+            self._publish_cycle_state()
+
     def _on_republish_timer(self):
-        """Lockstep: publish the awaited state again if the answers are overdue."""
-        if time.monotonic() - self._last_publish_wall >= self._republish_period:
-            self._publish_joint_states(only_unanswered=True)
-            if time.monotonic() - self._state_published_wall < WAITING_WARNING_DELAY:
-                return
-            self._warn_throttled(('lockstep', 'waiting'), (
-                f'lockstep: waiting for the torque commands stamped {self._awaited_ns * 1e-9:g} s '
-                f'from {[arm for arm, answer in self._answers.items() if answer is None]}'))
+        """Lockstep: publish the awaited mocap samples or state again if answers are overdue."""
+        if time.monotonic() - self._last_publish_wall < self._republish_period:
+            return
+        if self._awaited_tracker_ns:
+            self._publish_mocap()
+            self._warn_throttled(('lockstep', 'tracker'), (
+                f'lockstep: waiting for the object tracker to answer the mocap samples stamped '
+                f'{sorted(s * 1e-9 for s in self._awaited_tracker_ns)} s'))
+            return
+        self._publish_joint_states(only_unanswered=True)
+        if time.monotonic() - self._state_published_wall < WAITING_WARNING_DELAY:
+            return
+        self._warn_throttled(('lockstep', 'waiting'), (
+            f'lockstep: waiting for the torque commands stamped {self._awaited_ns * 1e-9:g} s '
+            f'from {[arm for arm, answer in self._answers.items() if answer is None]}'))
 
     def _advance(self):
         """Apply this cycle's torques (commands or hold), step the twin, publish the new state."""
@@ -404,10 +415,33 @@ class SimBridge(Node):
     # -- publishing ------------------------------------------------------------------------------
 
     def _publish_state(self):
-        """Publish everything observable at the twin's current time and await its answers."""
+        """
+        Publish everything observable at the twin's current time and await its answers.
+
+        The cycle's mocap samples go first; with lockstep_wait_for_tracker the rest follows
+        once the tracker has answered each of them, so every estimate built from a sample
+        delivered at this cycle exists before anyone sees the cycle's joint states.
+        """
         self._awaited_ns = seconds_to_ns(self.twin.time)
         self._answers = dict.fromkeys(contract.ARMS)
         self._state_published_wall = time.monotonic()
+        self._mocap_samples = self.twin.mocap_samples()
+        self._publish_mocap()
+        if self._wait_for_tracker and self._mocap_samples:
+            self._awaited_tracker_ns = {seconds_to_ns(s.stamp) for s in self._mocap_samples}
+            return
+        self._publish_cycle_state()
+
+    def _publish_mocap(self):
+        """Publish the mocap samples delivered at this cycle (stamp = sampling time)."""
+        for sample in self._mocap_samples:
+            self._mocap.msg.header.stamp = time_msg(seconds_to_ns(sample.stamp))
+            _set_pose(self._mocap.msg.pose, sample.p_world, sample.quat_xyzw)
+            self._mocap.publish()
+        self._last_publish_wall = time.monotonic()
+
+    def _publish_cycle_state(self):
+        """Publish the joint states, FT wrenches, /clock, ground truth and diagnostics."""
         stamp = time_msg(self._awaited_ns)
         self._publish_joint_states()
         for arm in contract.ARMS:
@@ -417,10 +451,6 @@ class SimBridge(Node):
             _set_vector(ft.msg.wrench.force, force)
             _set_vector(ft.msg.wrench.torque, torque)
             ft.publish()
-        for sample in self.twin.mocap_samples():
-            self._mocap.msg.header.stamp = time_msg(seconds_to_ns(sample.stamp))
-            _set_pose(self._mocap.msg.pose, sample.p_world, sample.quat_xyzw)
-            self._mocap.publish()
         if self._publish_ground_truth and self._awaited_ns >= self._next_ground_truth_ns:
             self._next_ground_truth_ns = self._awaited_ns + self._ground_truth_period_ns
             self._publish_truth(stamp)

@@ -8,14 +8,14 @@ executor plays the controllers, so each step of the lockstep protocol can be che
 import math
 
 from dual_arm_control import contract
+from dual_arm_control.nodes.common import stamp_ns, time_msg
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from sim_bridge.bridge_node import (command_refusal, parameter_problem, SimBridge, stamp_ns,
-                                    time_msg)
+from sim_bridge.bridge_node import command_refusal, parameter_problem, SimBridge
 from std_srvs.srv import Trigger
 
 NAMES = contract.joint_names('left')
