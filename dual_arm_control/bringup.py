@@ -20,7 +20,7 @@ import time
 
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.executables import EXECUTABLES
-from dual_arm_control.graph import GRAPHS
+from dual_arm_control.graph import GRAPHS, run_parameters
 from dual_arm_control.resources import config_path
 
 STOP_GRACE_PERIOD = 4.0
@@ -46,16 +46,16 @@ def node_command(spec, ros_arguments):
     for param_file in spec.param_files:
         args += ['--params-file', str(config_path(param_file))]
     for name, value in spec.parameters.items():
-        args += ['-p', f'{name}:={_ros_value(value)}']
+        args += ['-p', f'{name}:={ros_value(value)}']
     return args + list(ros_arguments)
 
 
-def _ros_value(value):
+def ros_value(value):
     """Format a parameter value for `-p name:=value` (YAML syntax)."""
     if isinstance(value, bool):
         return 'true' if value else 'false'
     if isinstance(value, (list, tuple)):
-        return '[' + ', '.join(_ros_value(v) for v in value) + ']'
+        return '[' + ', '.join(ros_value(v) for v in value) + ']'
     return str(value)
 
 
@@ -91,7 +91,7 @@ class Launcher:
             if self._extra_param_file:
                 ros_arguments += ['--params-file', str(self._extra_param_file)]
             for name, value in self._node_parameters.get(spec.name, {}).items():
-                ros_arguments += ['-p', f'{name}:={_ros_value(value)}']
+                ros_arguments += ['-p', f'{name}:={ros_value(value)}']
             log_file = open(self._log_dir / f'{spec.label}.log', 'w')
             self._log_files.append(log_file)
             self._processes[spec.label] = subprocess.Popen(
@@ -136,7 +136,7 @@ def parse_arguments(argv=None):
     parser.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
     parser.add_argument('--params', type=Path,
                         help='ROS parameter YAML (ros__parameters) applied to every node')
-    parser.add_argument('--graph', choices=sorted(GRAPHS), default='hold',
+    parser.add_argument('--graph', choices=sorted(GRAPHS), default='full',
                         help='which node table to start')
     parser.add_argument('--domain-id', type=int,
                         help='ROS_DOMAIN_ID for the graph (default: a random free-ish id)')
@@ -154,12 +154,10 @@ def main(argv=None):
             return 2
     args.out.mkdir(parents=True, exist_ok=True)
     domain_id = args.domain_id if args.domain_id is not None else random.randint(1, 200)
-    bridge_parameters = {'mode': args.mode}
-    if args.scenario is not None:
-        bridge_parameters['scenario'] = str(args.scenario.resolve())
-        bridge_parameters['trajectory_log'] = str((args.out / 'trajectory.npz').resolve())
+    trajectory_log = (args.out / 'trajectory.npz').resolve() if args.scenario else None
     launcher = Launcher(GRAPHS[args.graph](), args.out, domain_id, args.params,
-                        {'sim_bridge': bridge_parameters})
+                        run_parameters(args.graph, args.scenario and args.scenario.resolve(),
+                                       args.mode, trajectory_log))
 
     def request_stop(signum, frame):
         launcher.stop_requested = True

@@ -7,6 +7,10 @@ finds) and the launcher's node table. Pure Python with no imports so setup.py ca
 
 EXECUTABLES = {
     'sim_bridge': 'sim_bridge.bridge_node:main',
+    'object_tracker': 'dual_arm_control.nodes.object_tracker:main',
+    'ds_motion_generator': 'dual_arm_control.nodes.ds_motion_generator:main',
+    'wrench_qp': 'dual_arm_control.nodes.wrench_qp:main',
+    'passive_controller': 'dual_arm_control.nodes.passive_controller:main',
     'gravity_comp_controller': 'sim_bridge.gravity_comp_controller:main',
     'dual_arm_bringup': 'dual_arm_control.bringup:main',
 }

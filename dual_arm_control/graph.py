@@ -1,7 +1,9 @@
 """
-The node table: which executables form the graph, under which names and namespaces.
+The node tables: which executables form a graph, under which names and namespaces.
 
-The launcher (`dual_arm_bringup`) and the ROS launch file are both built from this table.
+The launcher (`dual_arm_bringup`) and the ROS launch file (launch/dual_arm.launch.py) are both
+built from these tables; run_parameters() maps one run's choices (scenario, mode, output) onto
+node parameters, the same way for both.
 """
 
 from dataclasses import dataclass, field
@@ -25,6 +27,23 @@ class NodeSpec:
         return f'{self.namespace.strip("/")}_{self.name}' if self.namespace else self.name
 
 
+def full_graph():
+    """Return the product graph: bridge, tracker, DS, wrench QP and one controller per arm."""
+    sim_time = {'use_sim_time': True}
+    nodes = [
+        NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',),
+                 parameters={'lockstep_wait_for_tracker': True}),
+        NodeSpec('object_tracker', 'object_tracker', parameters=sim_time,
+                 param_files=('object_tracker.yaml',)),
+        NodeSpec('ds_motion_generator', 'ds_motion_generator', parameters=sim_time),
+        NodeSpec('wrench_qp', 'wrench_qp', parameters=sim_time, param_files=('wrench_qp.yaml',)),
+    ]
+    for arm in ARMS:
+        nodes.append(NodeSpec('passive_controller', 'passive_controller', f'/{arm}',
+                              dict(sim_time, arm=arm), ('passive_controller.yaml',)))
+    return tuple(nodes)
+
+
 def hold_graph():
     """Return the twin with one gravity-compensation test controller per arm."""
     nodes = [NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',))]
@@ -34,4 +53,29 @@ def hold_graph():
     return tuple(nodes)
 
 
-GRAPHS = {'hold': hold_graph}
+GRAPHS = {'full': full_graph, 'hold': hold_graph}
+
+# Sim time at which an episode starts by itself: after the FT sensors' tare window.
+EPISODE_START_TIME = 0.3
+# Bridge duration [s] of a graph run without a scenario: until stopped.
+RUN_FOREVER = 1.0e6
+
+
+def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None):
+    """Return {node name: {parameter: value}} for one run of a graph."""
+    parameters = {'sim_bridge': {'mode': mode}}
+    if scenario is not None:
+        parameters['sim_bridge']['scenario'] = str(scenario)
+    else:
+        parameters['sim_bridge']['duration'] = RUN_FOREVER
+    if trajectory_log is not None:
+        parameters['sim_bridge']['trajectory_log'] = str(trajectory_log)
+    if graph == 'full':
+        if scenario is not None:
+            parameters['ds_motion_generator'] = {'scenario': str(scenario),
+                                                 'auto_start_time': EPISODE_START_TIME}
+            parameters['wrench_qp'] = {'scenario': str(scenario)}
+        parameters['passive_controller'] = {'lockstep': mode == 'lockstep'}
+        if mode != 'lockstep':
+            parameters['sim_bridge']['lockstep_wait_for_tracker'] = False
+    return parameters

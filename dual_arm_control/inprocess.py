@@ -17,12 +17,11 @@ from dual_arm_control.core.passive_control import PassiveController, PassiveCont
 from dual_arm_control.core.tracker import ObjectTracker, TrackerConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
+from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.pipeline import (motion_config_for_scenario, tick_due, WrenchDistributor,
                                        WrenchDistributorConfig)
 import numpy as np
 from sim_bridge.twin import DualArmTwin
-
-START_TIME = 0.3
 
 
 @dataclass(frozen=True)
@@ -31,7 +30,7 @@ class RunnerConfig:
 
     fri_period: float = 0.002
     ds_period: float = 0.005
-    start_time: float = START_TIME
+    start_time: float = EPISODE_START_TIME
     motion_base: object = None
     controller: PassiveControllerConfig = field(default_factory=PassiveControllerConfig)
     wrench: WrenchDistributorConfig = field(default_factory=WrenchDistributorConfig)

@@ -366,6 +366,7 @@ class SimBridge(Node):
                 f'{sorted(s * 1e-9 for s in self._awaited_tracker_ns)} s'))
             return
         self._publish_joint_states(only_unanswered=True)
+        self._publish_ft(time_msg(self._awaited_ns))
         if time.monotonic() - self._state_published_wall < WAITING_WARNING_DELAY:
             return
         self._warn_throttled(('lockstep', 'waiting'), (
@@ -444,6 +445,16 @@ class SimBridge(Node):
         """Publish the joint states, FT wrenches, /clock, ground truth and diagnostics."""
         stamp = time_msg(self._awaited_ns)
         self._publish_joint_states()
+        self._publish_ft(stamp)
+        if self._publish_ground_truth and self._awaited_ns >= self._next_ground_truth_ns:
+            self._next_ground_truth_ns = self._awaited_ns + self._ground_truth_period_ns
+            self._publish_truth(stamp)
+        if self._awaited_ns >= self._next_diagnostics_ns:
+            self._next_diagnostics_ns += self._diagnostics_period_ns
+            self._publish_diagnostics()
+
+    def _publish_ft(self, stamp):
+        """Publish both arms' FT readings of the awaited cycle."""
         for arm in contract.ARMS:
             force, torque = self.twin.ft_wrench(arm)
             ft = self._ft[arm]
@@ -451,12 +462,6 @@ class SimBridge(Node):
             _set_vector(ft.msg.wrench.force, force)
             _set_vector(ft.msg.wrench.torque, torque)
             ft.publish()
-        if self._publish_ground_truth and self._awaited_ns >= self._next_ground_truth_ns:
-            self._next_ground_truth_ns = self._awaited_ns + self._ground_truth_period_ns
-            self._publish_truth(stamp)
-        if self._awaited_ns >= self._next_diagnostics_ns:
-            self._next_diagnostics_ns += self._diagnostics_period_ns
-            self._publish_diagnostics()
 
     def _publish_joint_states(self, only_unanswered=False):
         """Publish /clock and the joint states of the awaited cycle (again)."""

@@ -13,6 +13,7 @@ from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.evaluation.trajectory import load_trajectory
+from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.scenario import load_scenario, PLACE_TASKS, TOSS_TASKS
 import numpy as np
 
@@ -65,9 +66,9 @@ def predicted_landing(p_release, v_release, object_height, cell):
     return landing.position
 
 
-def episode_metrics(scenario, data, cell):
-    """Return the metrics dict of one episode from its trajectory arrays."""
-    t = data['t'] - data['t'][0]
+def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
+    """Return the metrics dict of one episode; times count from start_time [s] of sim time."""
+    t = data['t'] - start_time
     result = dict.fromkeys(METRIC_KEYS)
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
     directions = _impact_directions(scenario)
@@ -127,7 +128,7 @@ def episode_metrics(scenario, data, cell):
         result[f'max_tool_drift_{arm}'] = float(drift.max())
     for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
         result[counter] = int(data[counter]) if counter in data else None
-    result['sim_duration'] = float(t[-1])
+    result['sim_duration'] = float(data['t'][-1] - data['t'][0])
     result['success'] = bool(_success(scenario, result))
     return result
 
@@ -176,7 +177,7 @@ def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full'):
     events = {'contact': min((v for v in (result['t_contact_left'], result['t_contact_right'])
                               if v is not None), default=None),
               'release': result['t_release']}
-    shifted = dict(data, t=data['t'] - data['t'][0])
+    shifted = dict(data, t=data['t'] - EPISODE_START_TIME)
     plots.plot_tool_speeds(shifted, events, out_dir / 'tool_speeds.png')
     plots.plot_object_motion(shifted, events, out_dir / 'object_motion.png')
     plots.plot_trajectories_3d(shifted, out_dir / 'trajectories_3d.png')

@@ -1,0 +1,93 @@
+"""
+The ROS launch file and the launcher start the same graph.
+
+launch/launch_ros are not installable from pip, so this test loads the launch file with small
+recording stand-ins for those two modules (only the launch API is replaced; the node table,
+parameters and config paths are the product's own) and compares what it would start with the
+launcher's command lines.
+"""
+
+import importlib.util
+import sys
+import types
+
+from conftest import SOURCE_ROOT
+from dual_arm_control.bringup import node_command, ros_value
+from dual_arm_control.graph import GRAPHS, run_parameters
+import pytest
+
+
+class _Recorded:
+    def __init__(self, *args, **kwargs):
+        self.args = args
+        self.kwargs = kwargs
+
+
+class _LaunchConfiguration:
+    values = {}
+
+    def __init__(self, name):
+        self.name = name
+
+    def perform(self, context):
+        return self.values[self.name]
+
+
+def _load_launch_file(monkeypatch):
+    launch = types.ModuleType('launch')
+    launch.LaunchDescription = _Recorded
+    actions = types.ModuleType('launch.actions')
+    actions.DeclareLaunchArgument = _Recorded
+    actions.OpaqueFunction = _Recorded
+    substitutions = types.ModuleType('launch.substitutions')
+    substitutions.LaunchConfiguration = _LaunchConfiguration
+    launch_ros = types.ModuleType('launch_ros')
+    ros_actions = types.ModuleType('launch_ros.actions')
+    ros_actions.Node = _Recorded
+    for name, module in (('launch', launch), ('launch.actions', actions),
+                         ('launch.substitutions', substitutions), ('launch_ros', launch_ros),
+                         ('launch_ros.actions', ros_actions)):
+        monkeypatch.setitem(sys.modules, name, module)
+    path = SOURCE_ROOT / 'launch' / 'dual_arm.launch.py'
+    spec = importlib.util.spec_from_file_location('dual_arm_launch', path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _launcher_parameters(argv):
+    """Return (param files, {name: value}) from a launcher command line's ROS arguments."""
+    files, values = [], {}
+    for flag, value in zip(argv, argv[1:]):
+        if flag == '--params-file':
+            files.append(value)
+        elif flag == '-p':
+            name, _, text = value.partition(':=')
+            values[name] = text
+    return files, values
+
+
+@pytest.mark.parametrize('graph', sorted(GRAPHS))
+@pytest.mark.parametrize('mode', ['lockstep', 'realtime'])
+def test_launch_file_starts_the_launcher_graph(monkeypatch, graph, mode):
+    module = _load_launch_file(monkeypatch)
+    scenario = str(SOURCE_ROOT / 'config' / 'scenarios' / 'paper_toss.yaml')
+    _LaunchConfiguration.values = {'graph': graph, 'scenario': scenario, 'mode': mode,
+                                   'params_file': ''}
+    launched = module.graph_nodes(context=None)
+    specs = GRAPHS[graph]()
+    assert len(launched) == len(specs)
+    per_node = run_parameters(graph, scenario, mode)
+    for action, spec in zip(launched, specs):
+        assert action.kwargs['executable'] == spec.executable
+        assert action.kwargs['name'] == spec.name
+        assert (action.kwargs['namespace'] or '') == spec.namespace
+        files = [p for p in action.kwargs['parameters'] if isinstance(p, str)]
+        values = {k: v for p in action.kwargs['parameters'] if isinstance(p, dict)
+                  for k, v in p.items()}
+        run_arguments = []
+        for name, value in per_node.get(spec.name, {}).items():
+            run_arguments += ['-p', f'{name}:={ros_value(value)}']
+        launcher_files, launcher_values = _launcher_parameters(node_command(spec, run_arguments))
+        assert files == launcher_files
+        assert {name: ros_value(value) for name, value in values.items()} == launcher_values
