@@ -88,10 +88,10 @@ class Launcher:
         env = self.environment()
         for spec in self._nodes:
             ros_arguments = []
-            if self._extra_param_file:
-                ros_arguments += ['--params-file', str(self._extra_param_file)]
             for name, value in self._node_parameters.get(spec.name, {}).items():
                 ros_arguments += ['-p', f'{name}:={ros_value(value)}']
+            if self._extra_param_file:
+                ros_arguments += ['--params-file', str(self._extra_param_file)]
             log_file = open(self._log_dir / f'{spec.label}.log', 'w')
             self._log_files.append(log_file)
             self._processes[spec.label] = subprocess.Popen(

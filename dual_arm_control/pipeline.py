@@ -20,6 +20,9 @@ from dual_arm_control.core.wrench_qp import (ContactWrenchQP, pad_contact_geomet
 import numpy as np
 
 GRASPING_PHASES = (Phase.CONTACT, Phase.MANIPULATE)
+# The place DS aims this far below the box's resting pose [m], so the table, not the release,
+# stops the box: it is put down while still held, then released at rest.
+PLACE_PRESS_DEPTH = 0.01
 
 
 def tick_due(t, last_tick, period, tolerance=1e-9):
@@ -50,7 +53,8 @@ def motion_config_for_scenario(scenario, cell, base=None):
                        toss_speed=float(solution.speed))
     config = replace(config, toss=toss)
     if scenario.place is not None:
-        config = replace(config, place=replace(base.place, position=tuple(scenario.place)))
+        pressed = np.asarray(scenario.place, dtype=float) - [0.0, 0.0, PLACE_PRESS_DEPTH]
+        config = replace(config, place=replace(base.place, position=tuple(pressed)))
     return config
 
 

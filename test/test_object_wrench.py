@@ -39,10 +39,11 @@ def test_estimated_twist_enters_the_damping():
     wrench = desired_object_wrench(v_object, w_object, v_desired, w_desired, MASS, inertia,
                                    config)
     np.testing.assert_allclose(
-        wrench[:3], -12.64 * (v_object - v_desired) + [0.0, 0.0, MASS * GRAVITY], atol=1e-12)
+        wrench[:3], -config.linear_damping * (v_object - v_desired)
+        + [0.0, 0.0, MASS * GRAVITY], atol=1e-12)
     np.testing.assert_allclose(
-        wrench[3:], -25.0 * (w_object - w_desired) + np.cross(w_object, inertia @ w_object),
-        atol=1e-12)
+        wrench[3:], -config.angular_damping * (w_object - w_desired)
+        + np.cross(w_object, inertia @ w_object), atol=1e-12)
     no_moment = desired_object_wrench(v_object, w_object, v_desired, w_desired, MASS, inertia,
                                       ObjectWrenchConfig(include_moment=False))
     np.testing.assert_allclose(no_moment[3:], 0.0)

@@ -255,19 +255,32 @@ class DualArmMotionGenerator:
             release_velocity=self._release_velocity if toss else None)
 
     def _object_velocity(self, p_object, phase, dt):
-        """Return the desired object velocity (3,) m/s of the task's object DS (eqs. 7-9)."""
+        """
+        Return the desired object velocity (3,) m/s of the task's object DS (eqs. 7-9).
+
+        After contact the object's speed rises from the impact speed to the task speed with
+        toss_speed_time_constant: the toss field is boosted to that speed, the place and lift
+        fields (which slow down near their targets) are capped by it.
+        """
         config = self._config
         if config.task in _TOSS_TASKS:
-            direction = toss_velocity(p_object, self._toss_geometry).velocity
-            if phase in (Phase.CONTACT, Phase.MANIPULATE):
-                speed = self._object_speed.update(config.toss.toss_speed, dt)
-            else:
-                self._object_speed.reset(config.impact.impact_speed)
-                speed = self._object_speed.speed
-            return boosted_velocity(direction, speed)
+            task_speed = config.toss.toss_speed
+        elif config.task is Task.PICK_AND_PLACE:
+            task_speed = config.place.max_speed
+        else:
+            task_speed = config.lift.max_speed
+        if phase in (Phase.CONTACT, Phase.MANIPULATE):
+            speed = self._object_speed.update(task_speed, dt)
+        else:
+            self._object_speed.reset(config.impact.impact_speed)
+            speed = self._object_speed.speed
+        if config.task in _TOSS_TASKS:
+            return boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity, speed)
         if config.task is Task.PICK_AND_PLACE:
-            return place_velocity(p_object, config.place, config.coordination)
-        return lift_velocity(p_object, config.lift, config.coordination)
+            velocity = place_velocity(p_object, config.place, config.coordination)
+        else:
+            velocity = lift_velocity(p_object, config.lift, config.coordination)
+        return saturated_velocity(velocity, speed)
 
     def _reach(self, p_tools, R_tools, frames, directions, dt):
         """Return the coordinated reach-with-impact commands (eqs. 1-6, Proposition 2)."""

@@ -30,8 +30,10 @@ class ObjectWrenchConfig:
 
     linear_damping: float = 12.64
     """d_lin, damping on the object's linear velocity error [N s/m]."""
-    angular_damping: float = 25.0
-    """d_ang, damping on the object's angular velocity error [N m s/rad]."""
+    angular_damping: float = 2.0
+    """d_ang, damping on the object's angular velocity error [N m s/rad]. The reference's 25
+    only worked because it never estimated omega; with a real estimate (noise ~0.2 rad/s) 25
+    asks the pads for 5 N m of pitch moment they cannot give, which saturates the QP."""
     include_moment: bool = True
     """If False the moment part of f_o^d is zero (force-only distribution)."""
     gravity: float = 9.81

@@ -67,7 +67,8 @@ class PhaseConfig:
         release_plane_radius: m, > 0; crossing the release plane releases only within this
             distance of the release path (the line through x_release along the release
             velocity).
-        place_tolerance: m, > 0; place release when ||x_o - x_place|| <= this ...
+        place_tolerance: m, > 0; place release when ||x_o - x_place|| <= this (0.012 m: the
+            place target lies 1 cm below the resting pose, so this is on the table) ...
         place_speed: m/s, > 0; ... and ||v_o|| < place_speed.
         lift_tolerance: m, > 0; the 'lift_reached' event fires within this of the lift pose.
         grasp_loss_timeout: s, > 0; a pad out of contact this long in MANIPULATE releases.
@@ -80,7 +81,7 @@ class PhaseConfig:
     single_contact_timeout: float = 0.2
     release_tolerance: float = 0.03
     release_plane_radius: float = 0.10
-    place_tolerance: float = 0.03
+    place_tolerance: float = 0.012
     place_speed: float = 0.1
     lift_tolerance: float = 0.03
     grasp_loss_timeout: float = 0.1

@@ -93,8 +93,9 @@ class WrenchQPConfig:
 
     friction_coefficient: float = 0.9
     """Coulomb friction mu between pad and object [-]; pyramid half-width mu / sqrt(2)."""
-    torsion_arm: float = 0.03
-    """gamma_t: torsional friction limit |m_z| <= gamma_t f_z [m]."""
+    torsion_arm: float = 0.02
+    """gamma_t: torsional friction limit |m_z| <= gamma_t f_z [m]; no more than the pads'
+    real torsional friction (0.02 m in the twin's contact model, sim_bridge/scene.py)."""
     pad_half_length: float = 0.075
     """Half extent of the pad along the pad x axis: |m_y| <= this * f_z [m]."""
     pad_half_width: float = 0.05
