@@ -71,6 +71,7 @@ CONTACT_WRENCH = Topic('contact_wrench', WrenchStamped, CONTROL_QOS, per_arm=Tru
 OBJECT_DESIRED_TWIST = Topic('/object/desired_twist', TwistStamped, CONTROL_QOS)
 # One stamped status per DS tick: message = phase, values = task, time in phase, events, reason.
 PHASE = Topic('/dual_arm/phase', DiagnosticArray, LATCHED_QOS)
+PHASE_STATUS_NAME = 'dual_arm/phase'
 MARKERS = Topic('/dual_arm/markers', MarkerArray, SENSOR_QOS)
 GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, SENSOR_QOS)
 GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, SENSOR_QOS,

@@ -18,8 +18,8 @@ from dual_arm_control.core.tracker import ObjectTracker, TrackerConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
 from dual_arm_control.graph import EPISODE_START_TIME
-from dual_arm_control.pipeline import (motion_config_for_scenario, tick_due, WrenchDistributor,
-                                       WrenchDistributorConfig)
+from dual_arm_control.pipeline import (motion_config_for_scenario, seconds_to_ns, TickSchedule,
+                                       WrenchDistributor, WrenchDistributorConfig)
 import numpy as np
 from sim_bridge.twin import DualArmTwin
 
@@ -61,7 +61,7 @@ def run_episode(scenario, config=None, cell=None, duration=None):
     recorder = TrajectoryRecorder()
     log = EpisodeLog(trajectory={})
     duration = scenario.duration if duration is None else duration
-    last_tick = None
+    schedule = TickSchedule(config.ds_period)
     output = None
     wrenches = {arm: np.zeros(6) for arm in ARMS}
     torques = {arm: np.zeros(7) for arm in ARMS}
@@ -71,9 +71,9 @@ def run_episode(scenario, config=None, cell=None, duration=None):
         for sample in twin.mocap_samples():
             tracker.update(sample.stamp, sample.p_world, sample.quat_xyzw)
         joints = {arm: twin.joint_state(arm) for arm in ARMS}
-        if tick_due(t, last_tick, config.ds_period):
-            dt = config.ds_period if last_tick is None else t - last_tick
-            last_tick = t
+        t_ns = seconds_to_ns(t)
+        if schedule.due(t_ns):
+            dt = schedule.take(t_ns)
             estimate = tracker.state(t)
             if estimate is not None:
                 start = not started and t >= config.start_time - 1e-9

@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.ballistics import release_velocity_minimum_speed
 from dual_arm_control.core.exceptions import SolverError
+from dual_arm_control.core.geometry import rotation_exp
 from dual_arm_control.core.motion_generator import MotionGeneratorConfig
 from dual_arm_control.core.object_wrench import (box_inertia, desired_object_wrench,
                                                  ObjectWrenchConfig)
@@ -25,9 +26,56 @@ GRASPING_PHASES = (Phase.CONTACT, Phase.MANIPULATE)
 PLACE_PRESS_DEPTH = 0.01
 
 
-def tick_due(t, last_tick, period, tolerance=1e-9):
-    """Return True when a loop of the given period [s] is due at sim time t [s]."""
-    return last_tick is None or t - last_tick >= period - tolerance
+NANOSECONDS_PER_SECOND = 1_000_000_000
+
+
+def seconds_to_ns(seconds):
+    """Return a time in seconds as integer nanoseconds (rounded, so 0.002 * k stays exact)."""
+    return int(round(seconds * NANOSECONDS_PER_SECOND))
+
+
+class TickSchedule:
+    """
+    Which FRI cycles carry a tick of a slower loop (DS and QP at 200 Hz on a 2 ms FRI grid).
+
+    A tick is due on the first cycle of each period of the loop's time grid (t // period
+    increases), so the loop keeps its rate on average (ticks at 0, 6, 10, 16, 20 ms for 5 ms
+    on a 2 ms grid) and every process that sees the same cycle stamps computes the same
+    ticks. Time going backwards (a simulation reset) starts the schedule again.
+    """
+
+    def __init__(self, period):
+        self.period_ns = seconds_to_ns(period)
+        self.last_tick_ns = None
+
+    def due(self, t_ns):
+        """Return True if a tick is due at t_ns [ns] (does not record it)."""
+        if self.last_tick_ns is None or t_ns < self.last_tick_ns:
+            return True
+        return t_ns // self.period_ns > self.last_tick_ns // self.period_ns
+
+    def take(self, t_ns):
+        """Record a tick at t_ns; return the time since the previous tick [s]."""
+        fresh = self.last_tick_ns is None or t_ns <= self.last_tick_ns
+        elapsed_ns = self.period_ns if fresh else t_ns - self.last_tick_ns
+        self.last_tick_ns = t_ns
+        return elapsed_ns / NANOSECONDS_PER_SECOND
+
+    def reset(self):
+        """Forget the previous tick."""
+        self.last_tick_ns = None
+
+
+def object_state_at(state, t_ns):
+    """
+    Return (p, R, v, w) of a stamped object estimate predicted to t_ns with its own twist.
+
+    state: (stamp_ns, p_world (3,) [m], R_world (3, 3), v_world (3,) [m/s], w_world (3,)
+    [rad/s]); constant linear and angular velocity over the few milliseconds of the gap.
+    """
+    state_ns, p_world, R_world, v_world, w_world = state
+    dt = (t_ns - state_ns) / NANOSECONDS_PER_SECOND
+    return p_world + v_world * dt, rotation_exp(w_world * dt) @ R_world, v_world, w_world
 
 
 def motion_config_for_scenario(scenario, cell, base=None):

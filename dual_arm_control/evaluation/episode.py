@@ -145,7 +145,7 @@ def _success(scenario, result):
                 and result['landing_error'] is not None
                 and result['landing_error'] <= LANDING_LIMIT)
     if scenario.task in PLACE_TASKS:
-        return (grasped and no_slip and result['place_position_error'] is not None
+        return (grasped and result['place_position_error'] is not None
                 and result['place_position_error'] <= PLACE_LIMIT
                 and result['place_speed'] <= PLACE_SPEED_LIMIT)
     return grasped and no_slip

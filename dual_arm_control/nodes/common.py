@@ -11,15 +11,20 @@ import math
 import time
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, quat_xyzw_to_matrix
+from dual_arm_control.pipeline import NANOSECONDS_PER_SECOND, seconds_to_ns, TickSchedule
 import numpy as np
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 
-NANOSECONDS_PER_SECOND = 1_000_000_000
 LOG_THROTTLE_PERIOD = 1.0
+DEFAULT_DIAGNOSTICS_PERIOD = 1.0
+DIAGNOSTICS_PERIOD_RANGE = (0.01, 100.0)
 
 
 def time_msg(stamp_ns):
@@ -31,39 +36,6 @@ def time_msg(stamp_ns):
 def stamp_ns(stamp):
     """Return a builtin_interfaces/Time as integer nanoseconds."""
     return stamp.sec * NANOSECONDS_PER_SECOND + stamp.nanosec
-
-
-def seconds_to_ns(seconds):
-    """Return a time in seconds as integer nanoseconds (rounded, so 0.002 * k stays exact)."""
-    return int(round(seconds * NANOSECONDS_PER_SECOND))
-
-
-class TickSchedule:
-    """
-    Which FRI cycles carry a tick of a slower loop (DS and QP at 200 Hz on a 2 ms FRI grid).
-
-    A tick is due at the first cycle at least one period after the previous tick, so every
-    process that sees the same cycle stamps computes the same ticks.
-    """
-
-    def __init__(self, period):
-        self.period_ns = seconds_to_ns(period)
-        self.last_tick_ns = None
-
-    def due(self, t_ns):
-        """Return True if a tick is due at t_ns (does not record it)."""
-        return self.last_tick_ns is None or t_ns - self.last_tick_ns >= self.period_ns
-
-    def take(self, t_ns):
-        """Record a tick at t_ns; return the time since the previous tick [s]."""
-        elapsed = (self.period_ns if self.last_tick_ns is None
-                   else t_ns - self.last_tick_ns) / NANOSECONDS_PER_SECOND
-        self.last_tick_ns = t_ns
-        return elapsed
-
-    def reset(self):
-        """Forget the previous tick (after a simulation reset)."""
-        self.last_tick_ns = None
 
 
 def joint_state_arrays(msg, expected_names, need_effort=False):
@@ -198,3 +170,55 @@ def run_node(node_factory, name, args=None):
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+class CounterDiagnostics:
+    """
+    A node's counters on /diagnostics, at most once per `diagnostics_period` of sim time.
+
+    Declares the `diagnostics_period` parameter [s]. Driven by the stamps of the messages the
+    node handles, so it reports in lockstep runs (faster or slower than real time) as in real
+    time; a stamp earlier than the last report (simulation reset) reports at once.
+    """
+
+    def __init__(self, node):
+        self._node = node
+        low, high = DIAGNOSTICS_PERIOD_RANGE
+        node.declare_parameter('diagnostics_period', DEFAULT_DIAGNOSTICS_PERIOD,
+                               ParameterDescriptor(
+                                   description='sim time between two /diagnostics messages of '
+                                               'this node [s]',
+                                   floating_point_range=[FloatingPointRange(
+                                       from_value=low, to_value=high, step=0.0)]))
+        self._publisher = node.create_publisher(
+            contract.DIAGNOSTICS.msg_type, contract.DIAGNOSTICS.name, contract.DIAGNOSTICS.qos)
+        self._last_ns = None
+        self.name = node.get_fully_qualified_name().lstrip('/')
+
+    def publish_if_due(self, t_ns, report):
+        """
+        Publish report() = (level, message, {key: value}) if a period passed since the last one.
+
+        report is only called when a message goes out. Return True if one was published.
+        """
+        period_ns = seconds_to_ns(self._node.get_parameter('diagnostics_period').value)
+        if self._last_ns is not None and 0 <= t_ns - self._last_ns < period_ns:
+            return False
+        self._last_ns = t_ns
+        level, message, values = report()
+        status = DiagnosticStatus(level=level, name=self.name, message=message,
+                                  hardware_id=self._node.get_name())
+        status.values = [KeyValue(key=key, value=_format_value(value))
+                         for key, value in values.items()]
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = time_msg(t_ns)
+        self._publisher.publish(msg)
+        return True
+
+
+def _format_value(value):
+    """Format a diagnostic value: floats to 6 significant digits, the rest as str()."""
+    return f'{value:.6g}' if isinstance(value, float) else str(value)
+
+
+__all__ = ['NANOSECONDS_PER_SECOND', 'seconds_to_ns', 'TickSchedule']

@@ -15,14 +15,13 @@ from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
                                                     MotionGeneratorConfig, ObjectMeasurement)
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.nodes.common import (fill_odometry, joint_state_arrays,
-                                           NANOSECONDS_PER_SECOND, odometry_arrays,
-                                           RefusalCounter, run_node, seconds_to_ns,
-                                           set_vector3, stamp_ns, TickSchedule, time_msg,
-                                           wrench_array)
+from dual_arm_control.nodes.common import (CounterDiagnostics, fill_odometry,
+                                           joint_state_arrays, odometry_arrays, RefusalCounter,
+                                           run_node, seconds_to_ns, set_vector3, stamp_ns,
+                                           TickSchedule, time_msg, wrench_array)
 from dual_arm_control.nodes.markers import motion_markers
 from dual_arm_control.parameters import ConfigParameters
-from dual_arm_control.pipeline import motion_config_for_scenario
+from dual_arm_control.pipeline import motion_config_for_scenario, object_state_at
 from dual_arm_control.scenario import load_scenario
 from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
@@ -57,12 +56,13 @@ class DsMotionGenerator(Node):
         self._schedule = TickSchedule(self.declare_parameter(
             'ds_period', 0.005, ParameterDescriptor(
                 description='DS tick period [s] on the FRI cycle grid', read_only=True)).value)
-        self._parameters = ConfigParameters(self, base, self._on_config)
+        self._config_parameters = ConfigParameters(self, base, self._on_config)
         self._pending_config = None
-        self._generator = DualArmMotionGenerator(self._parameters.config)
+        self._generator = DualArmMotionGenerator(self._config_parameters.config)
         self._models = {arm: arm_model(arm, self._cell) for arm in ARMS}
         self._names = {arm: joint_names(arm) for arm in ARMS}
         self._refusals = RefusalCounter(self.get_logger())
+        self._diagnostics = CounterDiagnostics(self)
         self._joint_states = {}
         self._ft = {}
         self._object = None
@@ -103,11 +103,11 @@ class DsMotionGenerator(Node):
 
     def _on_object(self, msg):
         try:
-            position, rotation, linear, _ = odometry_arrays(msg)
+            position, rotation, linear, angular = odometry_arrays(msg)
         except InputError as error:
             self._refusals.refuse('object_state', str(error))
             return
-        self._object = (stamp_ns(msg.header.stamp), position, rotation, linear)
+        self._object = (stamp_ns(msg.header.stamp), position, rotation, linear, angular)
 
     def _on_joint_state(self, arm, msg):
         try:
@@ -162,15 +162,22 @@ class DsMotionGenerator(Node):
             return
         self._commands = dict.fromkeys(self._commands, False)
         self._publish(t_ns, output)
+        self._diagnostics.publish_if_due(t_ns, lambda: self._report(output))
+
+    def _report(self, output):
+        """Return the (level, message, values) of this node's diagnostics."""
+        level = DiagnosticStatus.WARN if self._refusals.total else DiagnosticStatus.OK
+        values = dict(self._refusals.counts, phase=output.phase.phase.value,
+                      refused_total=self._refusals.total)
+        return level, f'phase {output.phase.phase.value}', values
 
     def _object_at(self, t_ns, arms):
         """Return the newest object estimate predicted to t_ns, or a stand-in between the pads."""
         if self._object is None:
             midpoint = 0.5 * (arms['left'].p_world_tool + arms['right'].p_world_tool)
             return ObjectMeasurement(midpoint, np.eye(3), np.zeros(3))
-        stamp, position, rotation, linear = self._object
-        elapsed = (t_ns - stamp) / NANOSECONDS_PER_SECOND
-        return ObjectMeasurement(position + linear * elapsed, rotation, linear)
+        position, rotation, linear, _ = object_state_at(self._object, t_ns)
+        return ObjectMeasurement(position, rotation, linear)
 
     def _publish(self, t_ns, output):
         stamp = time_msg(t_ns)
@@ -200,7 +207,7 @@ def phase_message(stamp, phase_output):
     """Return the DiagnosticArray that carries one tick's phase, task, events and reason."""
     transition = phase_output.transition
     status = DiagnosticStatus(
-        level=DiagnosticStatus.OK, name='dual_arm/phase', hardware_id='dual_arm',
+        level=DiagnosticStatus.OK, name=contract.PHASE_STATUS_NAME, hardware_id='dual_arm',
         message=phase_output.phase.value,
         values=[KeyValue(key='task', value=phase_output.task.value),
                 KeyValue(key='time_in_phase', value=f'{phase_output.time_in_phase:.6f}'),

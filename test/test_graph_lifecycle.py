@@ -1,0 +1,155 @@
+"""
+The graph as users run it: live tuning, clean shutdown, a node that dies.
+
+Every test starts `dual_arm_bringup` as a real process tree in its own ROS domain and acts on it
+from the test process.
+"""
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from conftest import SOURCE_ROOT
+from dual_arm_control import contract
+from dual_arm_control.nodes.common import stamp_ns
+from graph_helpers import GraphProbe
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from std_srvs.srv import Trigger
+
+pytestmark = pytest.mark.slow
+BRINGUP = Path(sys.executable).parent / 'dual_arm_bringup'
+SHUTDOWN_LIMIT = 5.0
+
+
+def children(pid):
+    """Return the direct child pids of a process, read from /proc (Linux)."""
+    found = []
+    for task in Path(f'/proc/{pid}/task').glob('*'):
+        try:
+            found += [int(p) for p in (task / 'children').read_text().split()]
+        except OSError:
+            pass
+    return found
+
+
+def alive(pid):
+    """Return True if a process exists and is not a zombie."""
+    try:
+        return Path(f'/proc/{pid}/stat').read_text().split(') ')[1][0] != 'Z'
+    except (OSError, IndexError):
+        return False
+
+
+def start_launcher(tmp_path, *arguments):
+    out = tmp_path / 'run'
+    process = subprocess.Popen([str(BRINGUP), '--out', str(out), *arguments],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                               env=dict(os.environ), cwd=tmp_path)
+    return process, out
+
+
+def wait_for_children(process, count, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        pids = children(process.pid)
+        if len(pids) >= count:
+            return pids
+        time.sleep(0.1)
+    raise AssertionError(f'launcher started {children(process.pid)}, expected {count} nodes')
+
+
+def stop(process):
+    if process.poll() is None:
+        process.kill()
+    return process.communicate(timeout=30)[0]
+
+
+def test_sigterm_stops_every_node_within_five_seconds(tmp_path, ros_domain):
+    process, _ = start_launcher(tmp_path)
+    try:
+        pids = wait_for_children(process, 6)
+        time.sleep(3.0)
+        assert process.poll() is None, 'the graph must keep running without a scenario'
+        started = time.monotonic()
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=SHUTDOWN_LIMIT + 5.0)
+        assert time.monotonic() - started <= SHUTDOWN_LIMIT
+        assert not [pid for pid in pids if alive(pid)], 'orphaned node processes'
+    finally:
+        stop(process)
+
+
+def test_a_dying_node_stops_the_graph_with_a_failure(tmp_path, ros_domain):
+    process, out = start_launcher(tmp_path, '--scenario',
+                                  str(SOURCE_ROOT / 'config' / 'scenarios' / 'paper_toss.yaml'))
+    try:
+        pids = wait_for_children(process, 6)
+        time.sleep(2.0)
+        controller = next(pid for pid in pids if 'right' in Path(
+            f'/proc/{pid}/cmdline').read_text().replace('\0', ' '))
+        os.kill(controller, signal.SIGKILL)
+        started = time.monotonic()
+        code = process.wait(timeout=SHUTDOWN_LIMIT + 5.0)
+        assert time.monotonic() - started <= SHUTDOWN_LIMIT
+        assert code != 0
+        assert not [pid for pid in pids if alive(pid)]
+        assert not (out / 'metrics.json').exists()
+    finally:
+        print(stop(process))
+
+
+def test_live_impact_speed_changes_the_measured_impact(tmp_path, ros_domain):
+    params = tmp_path / 'params.yaml'
+    params.write_text('ds_motion_generator:\n  ros__parameters:\n    auto_start_time: 0.0\n'
+                      'sim_bridge:\n  ros__parameters:\n    duration: 30.0\n')
+    process, _ = start_launcher(
+        tmp_path, '--scenario', str(SOURCE_ROOT / 'config' / 'scenarios' / 'paper_toss.yaml'),
+        '--params', str(params))
+    probe = GraphProbe(ros_domain, 'parameter_tuner')
+    try:
+        wait_for_children(process, 6)
+        tool_velocity, first_contact = {}, []
+
+        def on_tool(msg):
+            v = msg.twist.twist.linear
+            tool_velocity[stamp_ns(msg.header.stamp)] = np.array([v.x, v.y, v.z])
+
+        def on_pad(msg):
+            f = msg.wrench.force
+            if not first_contact and np.linalg.norm([f.x, f.y, f.z]) > 0.0:
+                first_contact.append(stamp_ns(msg.header.stamp))
+
+        node = probe.node
+        node.create_subscription(contract.GROUND_TRUTH_TOOL.msg_type,
+                                 contract.GROUND_TRUTH_TOOL.resolved('left'), on_tool, 100)
+        node.create_subscription(contract.GROUND_TRUTH_PAD_WRENCH.msg_type,
+                                 contract.GROUND_TRUTH_PAD_WRENCH.resolved('left'), on_pad, 100)
+        client = AsyncParameterClient(node, 'ds_motion_generator')
+        assert probe.spin_until(lambda: client.services_are_ready(), 30.0)
+        refused = client.set_parameters([Parameter('impact.region.normal_distance',
+                                                   Parameter.Type.DOUBLE, -0.01)])
+        assert probe.spin_until(refused.done, 10.0)
+        result = refused.result().results[0]
+        assert not result.successful and 'normal_distance' in result.reason
+        accepted = client.set_parameters([Parameter('impact.impact_speed',
+                                                    Parameter.Type.DOUBLE, 0.3)])
+        assert probe.spin_until(accepted.done, 10.0)
+        assert accepted.result().results[0].successful
+        start = node.create_client(Trigger, contract.START_EPISODE_SERVICE)
+        assert start.wait_for_service(timeout_sec=10.0)
+        response = start.call_async(Trigger.Request())
+        assert probe.spin_until(response.done, 10.0) and response.result().success
+        assert probe.spin_until(lambda: bool(first_contact), 60.0), 'no contact'
+        before = max(s for s in tool_velocity if s < first_contact[0])
+        impact_speed = np.linalg.norm(tool_velocity[before])
+        print(f'impact speed with impact.impact_speed = 0.3 m/s: {impact_speed:.3f} m/s')
+        assert impact_speed == pytest.approx(0.3, rel=0.15)
+    finally:
+        probe.close()
+        print(stop(process)[-3000:])

@@ -1,0 +1,538 @@
+"""
+The node shells object_tracker, passive_controller and wrench_qp, one at a time, in one process.
+
+Each test builds the node on a private rclpy context in the test's ROS domain; a probe node on
+the same EventsExecutor plays the rest of the graph (bridge, DS) and records what the node
+publishes. The executor is spun for bounded times only. Expected numbers come from the core
+objects the nodes wrap, called directly with the same inputs.
+"""
+
+import math
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from dual_arm_control import contract
+from dual_arm_control.catalogue import object_spec
+from dual_arm_control.core.geometry import (matrix_to_quat_xyzw, quat_xyzw_to_matrix,
+                                            rotation_exp)
+from dual_arm_control.core.passive_control import (hold_torque, PassiveController,
+                                                   PassiveControllerConfig)
+from dual_arm_control.core.tracker import TrackerConfig
+from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.nodes.common import seconds_to_ns, stamp_ns, time_msg
+from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
+from dual_arm_control.nodes.passive_controller import PassiveControllerNode
+from dual_arm_control.nodes.wrench_qp import WrenchQPNode
+from graph_helpers import GraphProbe
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+
+SPIN_TIMEOUT = 10.0
+# Wall time the executor keeps spinning to show that a message is NOT sent.
+QUIET_TIME = 0.3
+GRAVITY = 9.81
+CELL = load_cell()
+
+
+class Harness:
+    """A node under test and a probe node that publishes its inputs and records its outputs."""
+
+    def __init__(self, domain_id, node_factory):
+        self.probe = GraphProbe(domain_id, name='shell_probe')
+        self.node = node_factory(self.probe.context)
+        self.probe.executor.add_node(self.node)
+        self.received = {}
+        self._publishers = {}
+
+    def publisher(self, topic, arm=None):
+        """Create a probe publisher on a contract topic; return it."""
+        name = topic.resolved(arm)
+        self._publishers[name] = self.probe.node.create_publisher(topic.msg_type, name,
+                                                                  topic.qos)
+        return self._publishers[name]
+
+    def record(self, topic, arm=None):
+        """Record the messages of a contract topic in self.received[resolved name]."""
+        name = topic.resolved(arm)
+        self.received[name] = []
+        self.probe.node.create_subscription(topic.msg_type, name, self.received[name].append,
+                                            topic.qos)
+        return self.received[name]
+
+    def connect(self):
+        """Spin until every probe publisher and every recorded node publisher is matched."""
+        node_publishers = [p for p in self.node.publishers if p.topic_name in self.received]
+        publishers = list(self._publishers.values()) + node_publishers
+        assert self.probe.spin_until(
+            lambda: all(p.get_subscription_count() > 0 for p in publishers), SPIN_TIMEOUT)
+
+    def send(self, name, msg):
+        """Publish msg on the probe publisher of the resolved topic name."""
+        self._publishers[name].publish(msg)
+
+    def spin_until(self, condition):
+        """Spin until condition() or SPIN_TIMEOUT; return condition()."""
+        return self.probe.spin_until(condition, SPIN_TIMEOUT)
+
+    def spin_quietly(self):
+        """Spin for QUIET_TIME whatever happens."""
+        self.probe.spin_until(lambda: False, QUIET_TIME)
+
+    def close(self):
+        """Destroy the node and the probe."""
+        self.probe.executor.remove_node(self.node)
+        self.node.destroy_node()
+        self.probe.close()
+
+
+@pytest.fixture
+def harness_factory(ros_domain):
+    """Return a function building a Harness around a node factory(context); close them all."""
+    harnesses = []
+
+    def build(node_factory):
+        harnesses.append(Harness(ros_domain, node_factory))
+        return harnesses[-1]
+
+    yield build
+    for harness in harnesses:
+        harness.close()
+
+
+def set_parameter(node, name, value):
+    """Set one parameter on the node; return the SetParametersResult."""
+    return node.set_parameters([Parameter(name, value=value)])[0]
+
+
+# -- object_tracker ------------------------------------------------------------------------------
+
+P_WORLD_OBJECT = np.array([0.41, 0.0, 0.32])
+SAMPLE_PERIOD_NS = 5_000_000
+
+
+def mocap_sample(t_ns, position, quat_xyzw):
+    """Return a PoseStamped mocap sample."""
+    msg = contract.MOCAP_OBJECT_POSE.msg_type()
+    msg.header.stamp = time_msg(t_ns)
+    msg.header.frame_id = contract.WORLD_FRAME
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
+    (msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z,
+     msg.pose.orientation.w) = (float(v) for v in quat_xyzw)
+    return msg
+
+
+def noisy_pose(rng):
+    """Return (position, quat_xyzw) of the resting object with the twin's mocap noise."""
+    position = P_WORLD_OBJECT + rng.normal(0.0, 5e-4, 3)
+    return position, matrix_to_quat_xyzw(rotation_exp(rng.normal(0.0, 5e-3, 3)))
+
+
+@pytest.fixture
+def tracker(harness_factory):
+    harness = harness_factory(lambda context: ObjectTrackerNode(context=context))
+    harness.publisher(contract.MOCAP_OBJECT_POSE)
+    harness.record(contract.OBJECT_STATE)
+    harness.record(contract.DIAGNOSTICS)
+    harness.connect()
+    return harness
+
+
+def feed_sample(harness, t_ns, position, quat_xyzw):
+    """Send one sample; wait until the tracker answered or refused it."""
+    node = harness.node
+    handled = len(harness.received['/object/state']) + node.refusals.total
+    harness.send('/mocap/object_pose', mocap_sample(t_ns, position, quat_xyzw))
+    assert harness.spin_until(
+        lambda: len(harness.received['/object/state']) + node.refusals.total > handled)
+
+
+def test_tracker_answers_every_valid_sample_with_its_stamp(tracker):
+    rng = np.random.default_rng(4)
+    sent = []
+    invalid = {30: ([math.nan, 0.0, 0.3], [0.0, 0.0, 0.0, 1.0]),
+               60: (P_WORLD_OBJECT, [0.0, 0.0, 0.0, 0.0]),
+               90: (P_WORLD_OBJECT, [0.0, 0.0, math.inf, 1.0])}
+    for k in range(210):
+        t_ns = k * SAMPLE_PERIOD_NS
+        if k in invalid:
+            feed_sample(tracker, t_ns, *invalid[k])
+            continue
+        position, quat_xyzw = noisy_pose(rng)
+        if k == 120:
+            position = position + [0.3, 0.0, 0.0]
+        feed_sample(tracker, t_ns, position, quat_xyzw)
+        sent.append(t_ns)
+        if k == 150:
+            feed_sample(tracker, t_ns - 2 * SAMPLE_PERIOD_NS, position, quat_xyzw)
+
+    answers = tracker.received['/object/state']
+    assert [stamp_ns(msg.header.stamp) for msg in answers] == sent
+    assert tracker.node.refusals.counts == {'non_finite': 2, 'zero_quaternion': 1,
+                                            'old_stamp': 1}
+    assert tracker.node.counters['samples_rejected_outlier'] == 1
+    assert tracker.node.counters['samples_used'] == len(sent) - 1
+    outlier_answer = answers[sent.index(120 * SAMPLE_PERIOD_NS)].pose.pose.position
+    # The 0.3 m jump is gated out: the answer is the prediction, within a few noise sigmas.
+    assert np.linalg.norm([outlier_answer.x, outlier_answer.y, outlier_answer.z]
+                          - P_WORLD_OBJECT) < 3e-3
+    assert all(msg.header.frame_id == 'world' and msg.child_frame_id == 'object'
+               for msg in answers)
+
+    assert tracker.spin_until(lambda: len(tracker.received['/diagnostics']) >= 2)
+    stamps = [stamp_ns(msg.header.stamp) for msg in tracker.received['/diagnostics']]
+    assert stamps[:2] == [0, 200 * SAMPLE_PERIOD_NS]
+    status = tracker.received['/diagnostics'][1].status[0]
+    values = {pair.key: pair.value for pair in status.values}
+    assert status.name == 'object_tracker' and status.level == DiagnosticStatus.WARN
+    assert values['refused_old_stamp'] == '1' and values['refused_zero_quaternion'] == '1'
+    assert values['samples_rejected_outlier'] == '1'
+
+
+def test_tracker_parameters_refused_with_reason_and_applied_at_rest(tracker):
+    node = tracker.node
+    result = set_parameter(node, 'position_noise', 2.0)
+    assert not result.successful and result.reason
+    result = set_parameter(node, 'position_noise', 0.0)
+    assert not result.successful and 'position_noise' in result.reason
+    assert node.get_parameter('position_noise').value == TrackerConfig().position_noise
+
+    assert set_parameter(node, 'position_noise', 0.001).successful
+    assert node.pending_config.position_noise == 0.001
+    rng = np.random.default_rng(5)
+    for k in range(3):
+        feed_sample(tracker, k * SAMPLE_PERIOD_NS, *noisy_pose(rng))
+    assert node.config.position_noise == 0.001 and node.pending_config is None
+    assert node.counters['config_changes_applied'] == 1
+
+
+def test_tracker_restarts_when_the_clock_goes_back(tracker):
+    rng = np.random.default_rng(6)
+    late_ns = seconds_to_ns(3.0)
+    for t_ns in (late_ns, late_ns + SAMPLE_PERIOD_NS, SAMPLE_PERIOD_NS, 0, 2 * SAMPLE_PERIOD_NS):
+        feed_sample(tracker, t_ns, *noisy_pose(rng))
+    # 3 s back is a reset (restart, answered); 5 ms back after it is a late sample (refused).
+    assert [stamp_ns(m.header.stamp) for m in tracker.received['/object/state']] == [
+        late_ns, late_ns + SAMPLE_PERIOD_NS, SAMPLE_PERIOD_NS, 2 * SAMPLE_PERIOD_NS]
+    assert tracker.node.counters['time_resets'] == 1
+    assert tracker.node.counters['track_starts'] == 2
+    assert tracker.node.refusals.counts == {'old_stamp': 1}
+
+
+# -- passive_controller --------------------------------------------------------------------------
+
+Q_HOME_LEFT = CELL.arm('left').q_home
+TICK_PERIOD_NS = 6_000_000  # first 2 ms cycle at least 5 ms after the previous tick
+
+
+def controller_node(lockstep):
+    """Return a factory of the left arm's controller node."""
+    def build(context):
+        return PassiveControllerNode(context=context, namespace='/left', parameter_overrides=[
+            Parameter('arm', value='left'), Parameter('lockstep', value=lockstep)])
+    return build
+
+
+def controller_harness(harness_factory, lockstep):
+    """Return a Harness around the left controller, connected to its three inputs."""
+    harness = harness_factory(controller_node(lockstep))
+    for topic in (contract.JOINT_STATES, contract.DS_COMMAND, contract.CONTACT_WRENCH):
+        harness.publisher(topic, 'left')
+    harness.record(contract.TORQUE_COMMAND, 'left')
+    harness.connect()
+    return harness
+
+
+@pytest.fixture(params=[True, False], ids=['lockstep', 'realtime'])
+def controller(request, harness_factory):
+    return controller_harness(harness_factory, request.param)
+
+
+@pytest.fixture
+def lockstep_controller(harness_factory):
+    return controller_harness(harness_factory, True)
+
+
+def joint_state(t_ns, q, dq):
+    msg = contract.JOINT_STATES.msg_type()
+    msg.header.stamp = time_msg(t_ns)
+    msg.name = contract.joint_names('left')
+    msg.position = [float(v) for v in q]
+    msg.velocity = [float(v) for v in dq]
+    return msg
+
+
+def ds_command(t_ns, v_world, w_world, R_world):
+    msg = contract.DS_COMMAND.msg_type()
+    msg.header.stamp = time_msg(t_ns)
+    msg.header.frame_id = contract.WORLD_FRAME
+    msg.child_frame_id = 'left_tool'
+    orientation = msg.pose.pose.orientation
+    orientation.x, orientation.y, orientation.z, orientation.w = (
+        float(v) for v in matrix_to_quat_xyzw(R_world))
+    twist = msg.twist.twist
+    twist.linear.x, twist.linear.y, twist.linear.z = (float(v) for v in v_world)
+    twist.angular.x, twist.angular.y, twist.angular.z = (float(v) for v in w_world)
+    return msg
+
+
+def contact_wrench(t_ns, wrench):
+    msg = contract.CONTACT_WRENCH.msg_type()
+    msg.header.stamp = time_msg(t_ns)
+    msg.header.frame_id = contract.WORLD_FRAME
+    force, torque = msg.wrench.force, msg.wrench.torque
+    force.x, force.y, force.z, torque.x, torque.y, torque.z = (float(v) for v in wrench)
+    return msg
+
+
+def expected_torque(q, dq, command, wrench, config=None):
+    """Return the core controller's torque for a command (v, w, R) sent through a message."""
+    v_world, w_world, R_world = command
+    R_received = quat_xyzw_to_matrix(matrix_to_quat_xyzw(R_world))
+    controller = PassiveController(arm_model('left', CELL), Q_HOME_LEFT, config)
+    return controller.torque_command(q, dq, v_world, w_world, R_received, wrench).torque
+
+
+def expected_hold(q, dq):
+    model = arm_model('left', CELL)
+    torque = hold_torque(model.gravity_torque(q), dq, PassiveControllerConfig().hold_damping)
+    return np.clip(torque, -model.torque_limits, model.torque_limits)
+
+
+def controller_inputs(seed):
+    """Return a joint state (q, dq), a DS command (v, w, R) and a contact wrench, seeded."""
+    rng = np.random.default_rng(seed)
+    q = Q_HOME_LEFT + rng.uniform(-0.1, 0.1, 7)
+    dq = rng.uniform(-0.3, 0.3, 7)
+    command = (rng.uniform(-0.3, 0.3, 3), rng.uniform(-0.5, 0.5, 3),
+               rotation_exp(rng.uniform(-0.2, 0.2, 3)) @ CELL.arm('left').R_world_standby)
+    wrench = np.concatenate((rng.uniform(-30.0, 30.0, 3), rng.uniform(-1.0, 1.0, 3)))
+    return q, dq, command, wrench
+
+
+def efforts(msg):
+    return np.array(msg.effort)
+
+
+def test_controller_waits_for_ds_and_wrench_on_lockstep_ticks(lockstep_controller):
+    controller = lockstep_controller
+    node, commands = controller.node, controller.received['/left/torque_command']
+    q, dq, command, wrench = controller_inputs(1)
+
+    controller.send('/left/joint_states', joint_state(0, q, dq))
+    assert controller.spin_until(lambda: node.awaited_tick_ns == 0)
+    controller.send('/left/ds_command', ds_command(0, *command))
+    assert controller.spin_until(lambda: node.counters['ds_commands_received'] == 1)
+    controller.spin_quietly()
+    assert commands == []
+    controller.send('/left/contact_wrench', contact_wrench(0, wrench))
+    assert controller.spin_until(lambda: len(commands) == 1)
+    controller.spin_quietly()
+    assert len(commands) == 1 and stamp_ns(commands[0].header.stamp) == 0
+    assert commands[0].name == contract.joint_names('left')
+    np.testing.assert_allclose(efforts(commands[0]), expected_torque(q, dq, command, wrench),
+                               rtol=0.0, atol=1e-9)
+
+    for k, t_ns in enumerate((2_000_000, 4_000_000), start=2):
+        controller.send('/left/joint_states', joint_state(t_ns, q, dq))
+        assert controller.spin_until(lambda: len(commands) == k)
+        assert stamp_ns(commands[-1].header.stamp) == t_ns
+
+    controller.send('/left/joint_states', joint_state(TICK_PERIOD_NS, q, dq))
+    assert controller.spin_until(lambda: node.awaited_tick_ns == TICK_PERIOD_NS)
+    nan_command = (np.full(3, math.nan), command[1], command[2])
+    controller.send('/left/ds_command', ds_command(TICK_PERIOD_NS, *nan_command))
+    controller.send('/left/contact_wrench', contact_wrench(TICK_PERIOD_NS, wrench))
+    assert controller.spin_until(lambda: len(commands) == 4)
+    # The NaN command is refused but ends the wait; the newest valid command (6 ms old) is used.
+    assert node.refusals.counts == {'ds_command': 1}
+    np.testing.assert_allclose(efforts(commands[3]), expected_torque(q, dq, command, wrench),
+                               rtol=0.0, atol=1e-9)
+    assert node.counters['holds_no_command'] == node.counters['holds_stale_command'] == 0
+
+
+def test_controller_holds_without_fresh_command_and_refuses_nan(controller):
+    node, commands = controller.node, controller.received['/left/torque_command']
+    q, dq, command, wrench = controller_inputs(2)
+    refused_before = 1 if node.lockstep else 0
+    if node.lockstep:
+        controller.send('/left/ds_command', ds_command(0, np.full(3, math.nan), *command[1:]))
+        controller.send('/left/contact_wrench', contact_wrench(0, np.full(6, math.nan)))
+        assert controller.spin_until(lambda: node.refusals.total == 2)
+    controller.send('/left/joint_states', joint_state(0, q, dq))
+    assert controller.spin_until(lambda: len(commands) == 1)
+    np.testing.assert_allclose(efforts(commands[0]), expected_hold(q, dq), rtol=0.0,
+                               atol=1e-9)
+    assert node.counters['holds_no_command'] == 1
+
+    controller.send('/left/ds_command', ds_command(2_000_000, *command))
+    controller.send('/left/contact_wrench', contact_wrench(2_000_000, wrench))
+    assert controller.spin_until(
+        lambda: node.counters['ds_commands_received']
+        == node.counters['contact_wrenches_received'] == refused_before + 1)
+    controller.send('/left/joint_states', joint_state(2_000_000, q, dq))
+    assert controller.spin_until(lambda: len(commands) == 2)
+    np.testing.assert_allclose(efforts(commands[1]), expected_torque(q, dq, command, wrench),
+                               rtol=0.0, atol=1e-9)
+
+    stale_ns = 2_000_000 + seconds_to_ns(0.05) + 2_000_000
+    controller.send('/left/joint_states', joint_state(stale_ns, q, dq))
+    if node.lockstep:
+        assert controller.spin_until(lambda: node.awaited_tick_ns == stale_ns)
+        controller.send('/left/ds_command', ds_command(stale_ns, command[0],
+                                                       np.full(3, math.inf), command[2]))
+        controller.send('/left/contact_wrench', contact_wrench(stale_ns, np.full(6, math.inf)))
+    assert controller.spin_until(lambda: len(commands) == 3)
+    np.testing.assert_allclose(efforts(commands[2]), expected_hold(q, dq), rtol=0.0,
+                               atol=1e-9)
+    assert node.counters['holds_stale_command'] == 1
+
+    bad_state = joint_state(stale_ns + 2_000_000, q, dq)
+    bad_state.velocity[3] = math.nan
+    controller.send('/left/joint_states', bad_state)
+    assert controller.spin_until(lambda: node.refusals.counts.get('joint_state') == 1)
+    controller.spin_quietly()
+    assert len(commands) == 3
+    assert all(np.all(np.isfinite(efforts(msg))) for msg in commands)
+    if node.lockstep:
+        assert node.refusals.counts == {'ds_command': 2, 'contact_wrench': 2, 'joint_state': 1}
+
+
+def test_controller_parameters(controller):
+    node, commands = controller.node, controller.received['/left/torque_command']
+    for name, value, reason in (('damping_along', -1.0, ''),
+                                ('damping_along', 0.0, 'damping_along'),
+                                ('null_space_stiffness', [1.0] * 6, 'null_space_stiffness'),
+                                ('command_timeout', 0.005, 'command_timeout'),
+                                ('arm', 'right', 'read-only')):
+        result = set_parameter(node, name, value)
+        assert not result.successful and reason in result.reason, (name, result.reason)
+    assert set_parameter(node, 'damping_along', 250.0).successful
+    assert node.controller.config.damping_along == PassiveControllerConfig().damping_along
+    q, dq, command, wrench = controller_inputs(3)
+    controller.send('/left/ds_command', ds_command(0, *command))
+    controller.send('/left/contact_wrench', contact_wrench(0, wrench))
+    assert controller.spin_until(lambda: node.counters['ds_commands_received']
+                                 == node.counters['contact_wrenches_received'] == 1)
+    controller.send('/left/joint_states', joint_state(0, q, dq))
+    assert controller.spin_until(lambda: len(commands) == 1)
+    assert node.controller.config.damping_along == 250.0
+    config = PassiveControllerConfig(damping_along=250.0)
+    np.testing.assert_allclose(efforts(commands[0]),
+                               expected_torque(q, dq, command, wrench, config), atol=1e-9)
+
+
+# -- wrench_qp -----------------------------------------------------------------------------------
+
+def tool_poses():
+    """Return {arm: (p_world_tool, R_world_tool)} of both arms at home."""
+    return {arm: arm_model(arm, CELL).tool_pose(CELL.arm(arm).q_home) for arm in contract.ARMS}
+
+
+@pytest.fixture
+def wrench_qp(harness_factory):
+    """Return a wrench_qp harness whose box spans the gap between the two tools at home."""
+    tools = tool_poses()
+    gap = tools['left'][0][1] - tools['right'][0][1]
+    size = [0.2, float(gap), 0.2]
+    harness = harness_factory(lambda context: WrenchQPNode(context=context, parameter_overrides=[
+        Parameter('object_size', value=size)]))
+    for topic in (contract.OBJECT_STATE, contract.OBJECT_DESIRED_TWIST, contract.PHASE):
+        harness.publisher(topic)
+    for arm in contract.ARMS:
+        harness.publisher(contract.JOINT_STATES, arm)
+        harness.record(contract.CONTACT_WRENCH, arm)
+    harness.connect()
+    harness.p_world_object = 0.5 * (tools['left'][0] + tools['right'][0])
+    return harness
+
+
+def send_tick(harness, t_ns, phase, object_velocity=(0.0, 0.0, 0.0)):
+    """Send one DS tick's inputs (object state 5 ms old); return the two published wrenches."""
+    count = len(harness.received['/left/contact_wrench'])
+    state = contract.OBJECT_STATE.msg_type()
+    state.header.stamp = time_msg(t_ns - 5_000_000)
+    position = harness.p_world_object - 0.005 * np.asarray(object_velocity)
+    state.pose.pose.position.x, state.pose.pose.position.y, state.pose.pose.position.z = (
+        float(v) for v in position)
+    state.pose.pose.orientation.w = 1.0
+    twist = state.twist.twist.linear
+    twist.x, twist.y, twist.z = (float(v) for v in object_velocity)
+    harness.send('/object/state', state)
+    desired = contract.OBJECT_DESIRED_TWIST.msg_type()
+    desired.header.stamp = time_msg(t_ns)
+    harness.send('/object/desired_twist', desired)
+    phase_msg = DiagnosticArray(status=[DiagnosticStatus(name='dual_arm/phase', message=phase)])
+    phase_msg.header.stamp = time_msg(t_ns)
+    harness.send('/dual_arm/phase', phase_msg)
+    for arm in contract.ARMS:
+        msg = contract.JOINT_STATES.msg_type()
+        msg.header.stamp = time_msg(t_ns)
+        msg.name = contract.joint_names(arm)
+        msg.position = [float(v) for v in CELL.arm(arm).q_home]
+        msg.velocity = [0.0] * 7
+        harness.send(contract.JOINT_STATES.resolved(arm), msg)
+    assert harness.spin_until(
+        lambda: all(len(harness.received[contract.CONTACT_WRENCH.resolved(arm)]) > count
+                    for arm in contract.ARMS))
+    wrenches = {}
+    for arm in contract.ARMS:
+        msg = harness.received[contract.CONTACT_WRENCH.resolved(arm)][-1]
+        assert stamp_ns(msg.header.stamp) == t_ns and msg.header.frame_id == 'world'
+        force, torque = msg.wrench.force, msg.wrench.torque
+        wrenches[arm] = np.array([force.x, force.y, force.z, torque.x, torque.y, torque.z])
+    return wrenches
+
+
+def test_wrench_qp_zero_outside_grasp_and_squeeze_in_manipulate(wrench_qp):
+    mass = object_spec('paper_cube').mass
+    t_ns = 0
+    for phase in ('standby', 'reach', 'reach'):
+        wrenches = send_tick(wrench_qp, t_ns, phase)
+        assert all(np.array_equal(w, np.zeros(6)) for w in wrenches.values())
+        t_ns += TICK_PERIOD_NS
+    for phase in ['contact'] * 2 + ['manipulate'] * 40:
+        wrenches = send_tick(wrench_qp, t_ns, phase)
+        t_ns += TICK_PERIOD_NS
+    tools = tool_poses()
+    net_force = wrenches['left'][:3] + wrenches['right'][:3]
+    net_moment = sum(wrenches[arm][3:] + np.cross(tools[arm][0] - wrench_qp.p_world_object,
+                                                  wrenches[arm][:3]) for arm in contract.ARMS)
+    # Left pad on the +y face pushes along -y, the right pad along +y, within 30-45 N; after
+    # 42 grasp ticks of 6 ms the 20 ms ramp is complete to exp(-12.6) ~ 3e-6 (1e-4 N).
+    assert 30.0 - 1e-3 <= -wrenches['left'][1] <= 45.0
+    assert 30.0 - 1e-3 <= wrenches['right'][1] <= 45.0
+    np.testing.assert_allclose(net_force, [0.0, 0.0, mass * GRAVITY], atol=1e-3)
+    np.testing.assert_allclose(net_moment, np.zeros(3), atol=1e-3)
+    assert wrench_qp.node.counters['infeasible_ticks'] == 0
+
+    wrenches = send_tick(wrench_qp, t_ns, 'release')
+    assert all(np.array_equal(w, np.zeros(6)) for w in wrenches.values())
+
+    wrenches = send_tick(wrench_qp, t_ns + TICK_PERIOD_NS, 'dance')
+    assert wrench_qp.node.refusals.counts == {'phase': 1}
+    assert all(np.array_equal(w, np.zeros(6)) for w in wrenches.values())
+
+
+def test_wrench_qp_parameters(wrench_qp):
+    node = wrench_qp.node
+    for name, value, reason in (('qp.min_normal_force', 50.0, 'max_normal_force'),
+                                ('ramp_time_constant', 0.0, 'ramp_time_constant'),
+                                ('object_mass', -1.0, ''),
+                                ('object_size', [0.2, 0.0, 0.2], 'object_size y'),
+                                ('object_size', [0.2, 0.2], 'object_size'),
+                                ('scenario', 'hold', 'read-only')):
+        result = set_parameter(node, name, value)
+        assert not result.successful and reason in result.reason, (name, result.reason)
+    assert set_parameter(node, 'qp.squeeze_force', 36.0).successful
+    assert set_parameter(node, 'object_mass', 1.5).successful
+    t_ns = 0
+    for phase in ['standby'] + ['manipulate'] * 40:
+        wrenches = send_tick(wrench_qp, t_ns, phase, object_velocity=(0.0, 0.0, 0.1))
+        t_ns += TICK_PERIOD_NS
+    assert node.config.qp.squeeze_force == 36.0 and node.object_mass == 1.5
+    # Net force = m g up minus the object DS damping on the 0.1 m/s upward object velocity.
+    net_force = wrenches['left'][:3] + wrenches['right'][:3]
+    expected_z = 1.5 * GRAVITY - node.config.object.linear_damping * 0.1
+    np.testing.assert_allclose(net_force, [0.0, 0.0, expected_z], atol=1e-3)
+    np.testing.assert_allclose([-wrenches['left'][1], wrenches['right'][1]], [36.0, 36.0],
+                               atol=1e-3)
