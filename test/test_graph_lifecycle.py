@@ -48,7 +48,9 @@ def alive(pid):
 
 def start_launcher(tmp_path, *arguments):
     out = tmp_path / 'run'
-    process = subprocess.Popen([str(BRINGUP), '--out', str(out), *arguments],
+    domain = os.environ['ROS_DOMAIN_ID']
+    process = subprocess.Popen([str(BRINGUP), '--out', str(out), '--domain-id', domain,
+                                *arguments],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                env=dict(os.environ), cwd=tmp_path)
     return process, out

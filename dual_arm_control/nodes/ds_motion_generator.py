@@ -69,6 +69,7 @@ class DsMotionGenerator(Node):
         self._started = self._auto_start_ns == 0
         self._commands = {'start': False, 'go_home': False, 'reset': False}
         self._last_marker_ns = None
+        self._last_output = None
         self._ds_publishers = {arm: self._publisher(contract.DS_COMMAND, arm) for arm in ARMS}
         self._twist_publisher = self._publisher(contract.OBJECT_DESIRED_TWIST)
         self._phase_publisher = self._publisher(contract.PHASE)
@@ -88,6 +89,12 @@ class DsMotionGenerator(Node):
             self.create_service(Trigger, service,
                                 lambda request, response, command=command:
                                 self._on_command(command, response))
+        config = self._config_parameters.config
+        self.get_logger().info(
+            f'ds_motion_generator up: task {config.task.value}, impact speed '
+            f'{config.impact.impact_speed:g} m/s, toss speed {config.toss.toss_speed:g} m/s, '
+            f'auto start at {self._auto_start_ns * 1e-9:g} s (0 = start service), '
+            f'{len(self._config_parameters.names)} tunable parameters')
 
     def _publisher(self, topic, arm=None):
         return self.create_publisher(topic.msg_type, topic.resolved(arm), topic.qos)
@@ -140,6 +147,8 @@ class DsMotionGenerator(Node):
                 del self._ft[stale]
             if self._schedule.due(t_ns):
                 self._tick(t_ns, self._schedule.take(t_ns), joints, readings)
+            elif t_ns == self._schedule.last_tick_ns and self._last_output is not None:
+                self._publish(t_ns, self._last_output)
 
     def _tick(self, t_ns, dt, joints, readings):
         if self._pending_config is not None:
@@ -161,6 +170,7 @@ class DsMotionGenerator(Node):
             self._refusals.refuse('tick', str(error))
             return
         self._commands = dict.fromkeys(self._commands, False)
+        self._last_output = output
         self._publish(t_ns, output)
         self._diagnostics.publish_if_due(t_ns, lambda: self._report(output))
 

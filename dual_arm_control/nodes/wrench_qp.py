@@ -44,8 +44,9 @@ MAX_OBJECT_EDGE = 2.0
 # Ticks waiting for inputs are kept at most this many cycles (bounded after a lost message).
 MAX_PENDING_STAMPS = 64
 TICK_INPUTS = frozenset(('desired_twist', 'phase', *contract.ARMS))
-COUNTERS = ('ticks', 'grasp_ticks', 'infeasible_ticks', 'ticks_without_object_state',
-            'ticks_without_joint_states', 'ticks_without_phase', 'object_changes_applied')
+COUNTERS = ('ticks', 'repeated_answers', 'grasp_ticks', 'infeasible_ticks',
+            'ticks_without_object_state', 'ticks_without_joint_states', 'ticks_without_phase',
+            'object_changes_applied')
 
 
 def object_parameter_problem(name, value):
@@ -86,6 +87,7 @@ class WrenchQPNode(Node):
         self._pending_config = None
         self._pending_object = None
         self._schedule = TickSchedule(FIRST_TICK_PERIOD)
+        self._last_wrenches = None
 
         self.refusals = RefusalCounter(self.get_logger())
         self.counters = dict.fromkeys(COUNTERS, 0)
@@ -206,7 +208,16 @@ class WrenchQPNode(Node):
     # -- tick ------------------------------------------------------------------------------------
 
     def _process_tick(self, t_ns):
-        """Run the distributor for tick t_ns and publish both pad wrenches."""
+        """
+        Run the distributor for tick t_ns and publish both pad wrenches.
+
+        The same tick again (the bridge republished a stalled cycle, e.g. while a subscriber
+        was still being discovered) gets the same answer without touching the filters.
+        """
+        if t_ns == self._schedule.last_tick_ns and self._last_wrenches is not None:
+            self.counters['repeated_answers'] += 1
+            self._publish_wrenches(t_ns, self._last_wrenches)
+            return
         self.counters['ticks'] += 1
         if self._schedule.last_tick_ns is not None and t_ns < self._schedule.last_tick_ns:
             self._schedule.reset()
@@ -221,13 +232,17 @@ class WrenchQPNode(Node):
             self._distributor = WrenchDistributor(self._config, self.object_mass,
                                                   self.object_size)
             self.counters['object_changes_applied'] += 1
-        wrenches = self._wrenches(t_ns, phase, dt)
+        self._last_wrenches = self._wrenches(t_ns, phase, dt)
+        self._publish_wrenches(t_ns, self._last_wrenches)
+        self._diagnostics.publish_if_due(t_ns, self._report)
+
+    def _publish_wrenches(self, t_ns, wrenches):
+        """Publish both pad wrenches stamped t_ns."""
         for arm in contract.ARMS:
             msg = self._wrench_msgs[arm]
             msg.header.stamp = time_msg(t_ns)
             set_wrench(msg.wrench, wrenches[arm])
             self._wrench_pubs[arm].publish(msg)
-        self._diagnostics.publish_if_due(t_ns, self._report)
 
     def _wrenches(self, t_ns, phase, dt):
         """Return {arm: (6,) wrench} of the tick: the distributor's, or zeros without inputs."""
