@@ -21,6 +21,10 @@ from dual_arm_control.core.wrench_qp import (ContactWrenchQP, pad_contact_geomet
 import numpy as np
 
 GRASPING_PHASES = (Phase.CONTACT, Phase.MANIPULATE)
+# Pad wrenches are rounded to 10 uN / 10 uN m: proxsuite's last bits depend on the heap
+# alignment of its Eigen buffers (~1e-12 run to run), and rounding far below any physical
+# effect keeps lockstep runs bit-identical.
+WRENCH_DECIMALS = 5
 # The place DS aims this far below the box's resting pose [m], so the table, not the release,
 # stops the box: it is put down while still held, then released at rest.
 PLACE_PRESS_DEPTH = 0.01
@@ -179,8 +183,8 @@ class WrenchDistributor:
             result = self._qp.contact_wrenches(object_wrench, p_world_object, contacts)
         except SolverError as error:
             return DistributedWrenches(zero, object_wrench, self._gain, False, str(error))
-        wrenches = {arm: self._gain * wrench_about_tool(
-            result.wrenches[arm], contacts[arm].p_world_contact, p_world_tools[arm])
-            for arm in ARMS}
+        wrenches = {arm: np.round(self._gain * wrench_about_tool(
+            result.wrenches[arm], contacts[arm].p_world_contact, p_world_tools[arm]),
+            WRENCH_DECIMALS) for arm in ARMS}
         return DistributedWrenches(wrenches, object_wrench, self._gain, result.feasible,
                                    result.status)

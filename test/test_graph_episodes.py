@@ -79,14 +79,7 @@ def test_box_displaced_during_reach_is_still_grasped_and_tossed(tmp_path, ros_do
 
 
 def test_lockstep_graph_is_deterministic(tmp_path, ros_domain):
-    """
-    Two lockstep runs of the graph agree: bit for bit until contact, to 1e-9 afterwards.
-
-    The in-process pipeline is bit-identical run to run (test_inprocess). Across processes the
-    wrench QP (proxsuite) and the dynamics (pinocchio) round differently by ~1e-12 once the
-    QP is active, because Eigen's vectorised reductions depend on the heap alignment of each
-    process's buffers, which DDS's threads perturb; the bound says how far that goes.
-    """
+    """Two lockstep runs of the whole graph give bit-identical ground truth."""
     params = tmp_path / 'short.yaml'
     params.write_text('sim_bridge:\n  ros__parameters:\n    duration: 2.0\n')
     logs = []
@@ -97,11 +90,7 @@ def test_lockstep_graph_is_deterministic(tmp_path, ros_domain):
         with np.load(out / 'trajectory.npz') as archive:
             logs.append({name: archive[name] for name in archive.files})
     first, second = logs
-    contact = int(np.argmax(first['left_pad_contact'] | first['right_pad_contact']))
-    assert contact > 0, 'the short run must include the impact'
-    assert np.array_equal(first['t'], second['t'])
-    for name in ('left_q', 'left_dq', 'left_tau', 'right_q', 'right_dq', 'right_tau',
+    assert first['left_pad_contact'].any(), 'the short run must include the impact'
+    for name in ('t', 'left_q', 'left_dq', 'left_tau', 'right_q', 'right_dq', 'right_tau',
                  'object_position', 'object_quat_xyzw'):
-        assert np.array_equal(first[name][:contact], second[name][:contact]), name
-        np.testing.assert_allclose(first[name], second[name], rtol=0.0, atol=1e-9,
-                                   err_msg=name)
+        assert np.array_equal(first[name], second[name]), f'{name} differs between the runs'
