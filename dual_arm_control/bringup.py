@@ -174,7 +174,7 @@ def main(argv=None):
             print('dual_arm_bringup: stop requested, shutting the graph down')
             status = 130 if args.scenario is None else 1
             break
-        if 'sim_bridge' in exited and exited['sim_bridge'] == 0 and args.scenario is not None:
+        if exited.get('sim_bridge') == 0:
             break
         if exited:
             print(f'dual_arm_bringup: node(s) exited early: {exited}; stopping the graph',
