@@ -21,7 +21,7 @@ import time
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.executables import EXECUTABLES
 from dual_arm_control.graph import GRAPHS, run_parameters
-from dual_arm_control.resources import config_path
+from dual_arm_control.resources import config_path, load_yaml
 
 STOP_GRACE_PERIOD = 4.0
 POLL_PERIOD = 0.1
@@ -36,8 +36,8 @@ def _die_with_parent():
         pass
 
 
-def node_command(spec, ros_arguments):
-    """Return the argv that runs one node of the table with its ROS arguments."""
+def node_command(spec, ros_arguments, skip=()):
+    """Return the argv of one node of the table, its parameters but those in skip, arguments."""
     module, function = EXECUTABLES[spec.executable].split(':')
     launcher_code = f'import sys; from {module} import {function}; sys.exit({function}())'
     args = [sys.executable, '-c', launcher_code, '--ros-args', '-r', f'__node:={spec.name}']
@@ -46,8 +46,27 @@ def node_command(spec, ros_arguments):
     for param_file in spec.param_files:
         args += ['--params-file', str(config_path(param_file))]
     for name, value in spec.parameters.items():
+        if name in skip:
+            continue
         args += ['-p', f'{name}:={ros_value(value)}']
     return args + list(ros_arguments)
+
+
+def user_parameter_names(user_parameters, spec):
+    """
+    Return the parameter names a user's ROS parameter file sets for one node.
+
+    `-p` overrides win over parameter files in ROS 2 whatever their order, so the launcher
+    leaves out its own per-run value of any parameter the user's file sets: the user's file
+    has the last word. Keys may be the node name, its namespaced name or a `/**` wildcard.
+    """
+    names = set()
+    full_name = f'{spec.namespace}/{spec.name}'.strip('/')
+    for key, entry in user_parameters.items():
+        key = str(key).strip('/')
+        if key in ('**', spec.name, full_name, f'**/{spec.name}') and isinstance(entry, dict):
+            names.update((entry.get('ros__parameters') or {}).keys())
+    return names
 
 
 def ros_value(value):
@@ -68,6 +87,7 @@ class Launcher:
         self._domain_id = domain_id
         self._extra_param_file = extra_param_file
         self._node_parameters = node_parameters or {}
+        self._user_parameters = load_yaml(extra_param_file) if extra_param_file else {}
         self._processes = {}
         self._log_files = []
         self.stop_requested = False
@@ -87,16 +107,22 @@ class Launcher:
         self._log_dir.mkdir(parents=True, exist_ok=True)
         env = self.environment()
         for spec in self._nodes:
-            ros_arguments = []
-            for name, value in self._node_parameters.get(spec.name, {}).items():
-                ros_arguments += ['-p', f'{name}:={ros_value(value)}']
-            if self._extra_param_file:
-                ros_arguments += ['--params-file', str(self._extra_param_file)]
             log_file = open(self._log_dir / f'{spec.label}.log', 'w')
             self._log_files.append(log_file)
             self._processes[spec.label] = subprocess.Popen(
-                node_command(spec, ros_arguments), stdout=log_file, stderr=subprocess.STDOUT,
+                self.command(spec), stdout=log_file, stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL, env=env, preexec_fn=_die_with_parent)
+
+    def command(self, spec):
+        """Return the argv of one node: table values, this run's values, the user's file."""
+        ros_arguments = []
+        user_values = user_parameter_names(self._user_parameters, spec)
+        for name, value in self._node_parameters.get(spec.name, {}).items():
+            if name not in user_values:
+                ros_arguments += ['-p', f'{name}:={ros_value(value)}']
+        if self._extra_param_file:
+            ros_arguments += ['--params-file', str(self._extra_param_file)]
+        return node_command(spec, ros_arguments, skip=user_values)
 
     def poll(self):
         """Return {label: exit code} of the children that have exited."""

@@ -13,11 +13,9 @@ import sys
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError
 from dual_arm_control.description.cell import arm_model
+from dual_arm_control.nodes.common import run_node
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-import rclpy
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -113,25 +111,7 @@ class GravityCompController(Node):
 
 def main(args=None):
     """Run one arm's controller until Ctrl-C or SIGTERM."""
-    rclpy.init(args=args)
-    try:
-        node = GravityCompController()
-    except (DualArmControlError, rclpy.exceptions.ParameterException) as error:
-        rclpy.logging.get_logger('gravity_comp_controller').fatal(f'cannot start: {error}')
-        rclpy.try_shutdown()
-        return 2
-    executor = EventsExecutor()
-    executor.add_node(node)
-    try:
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.remove_node(node)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(GravityCompController, 'gravity_comp_controller', args)
 
 
 if __name__ == '__main__':

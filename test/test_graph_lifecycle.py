@@ -14,6 +14,7 @@ import time
 
 from conftest import SOURCE_ROOT
 from dual_arm_control import contract
+from dual_arm_control.benchmarks.graph_bench import child_pids
 from dual_arm_control.nodes.common import stamp_ns
 from graph_helpers import GraphProbe
 import numpy as np
@@ -25,17 +26,6 @@ from std_srvs.srv import Trigger
 pytestmark = pytest.mark.slow
 BRINGUP = Path(sys.executable).parent / 'dual_arm_bringup'
 SHUTDOWN_LIMIT = 5.0
-
-
-def children(pid):
-    """Return the direct child pids of a process, read from /proc (Linux)."""
-    found = []
-    for task in Path(f'/proc/{pid}/task').glob('*'):
-        try:
-            found += [int(p) for p in (task / 'children').read_text().split()]
-        except OSError:
-            pass
-    return found
 
 
 def alive(pid):
@@ -56,14 +46,14 @@ def start_launcher(tmp_path, *arguments):
     return process, out
 
 
-def wait_for_children(process, count, timeout=30.0):
+def wait_for_child_pids(process, count, timeout=30.0):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        pids = children(process.pid)
+        pids = child_pids(process.pid)
         if len(pids) >= count:
             return pids
         time.sleep(0.1)
-    raise AssertionError(f'launcher started {children(process.pid)}, expected {count} nodes')
+    raise AssertionError(f'launcher started {child_pids(process.pid)}, expected {count} nodes')
 
 
 def stop(process):
@@ -75,7 +65,7 @@ def stop(process):
 def test_sigterm_stops_every_node_within_five_seconds(tmp_path, ros_domain):
     process, _ = start_launcher(tmp_path)
     try:
-        pids = wait_for_children(process, 6)
+        pids = wait_for_child_pids(process, 6)
         time.sleep(3.0)
         assert process.poll() is None, 'the graph must keep running without a scenario'
         started = time.monotonic()
@@ -91,7 +81,7 @@ def test_a_dying_node_stops_the_graph_with_a_failure(tmp_path, ros_domain):
     process, out = start_launcher(tmp_path, '--scenario',
                                   str(SOURCE_ROOT / 'config' / 'scenarios' / 'paper_toss.yaml'))
     try:
-        pids = wait_for_children(process, 6)
+        pids = wait_for_child_pids(process, 6)
         time.sleep(2.0)
         controller = next(pid for pid in pids if 'right' in Path(
             f'/proc/{pid}/cmdline').read_text().replace('\0', ' '))
@@ -115,7 +105,7 @@ def test_live_impact_speed_changes_the_measured_impact(tmp_path, ros_domain):
         '--params', str(params))
     probe = GraphProbe(ros_domain, 'parameter_tuner')
     try:
-        wait_for_children(process, 6)
+        wait_for_child_pids(process, 6)
         tool_velocity, first_contact = {}, []
 
         def on_tool(msg):

@@ -91,3 +91,20 @@ def test_launch_file_starts_the_launcher_graph(monkeypatch, graph, mode):
         launcher_files, launcher_values = _launcher_parameters(node_command(spec, run_arguments))
         assert files == launcher_files
         assert {name: ros_value(value) for name, value in values.items()} == launcher_values
+
+
+def test_a_users_parameter_file_has_the_last_word(tmp_path):
+    from dual_arm_control.bringup import Launcher
+    user_file = tmp_path / 'user.yaml'
+    user_file.write_text('sim_bridge:\n  ros__parameters:\n    duration: 7.0\n'
+                         '/**:\n  ros__parameters:\n    use_sim_time: false\n')
+    specs = GRAPHS['full']()
+    launcher = Launcher(specs, tmp_path, 1, user_file,
+                        run_parameters('full', None, 'lockstep'))
+    commands = {}
+    for spec in specs:
+        commands[spec.label] = launcher.command(spec)
+    bridge = ' '.join(commands['sim_bridge'])
+    assert 'duration:=' not in bridge and 'mode:=lockstep' in bridge
+    assert bridge.endswith(f'--params-file {user_file}')
+    assert 'use_sim_time:=' not in ' '.join(commands['left_passive_controller'])

@@ -29,7 +29,8 @@ CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
 DS_PERIOD = 0.005
 
 
-def _children(pid):
+def child_pids(pid):
+    """Return the direct child pids of a process, read from /proc (Linux)."""
     found = []
     for task in Path(f'/proc/{pid}/task').glob('*'):
         try:
@@ -96,7 +97,7 @@ def realtime_run(out, duration):
     started = time.monotonic()
     while process.poll() is None:
         executor.spin_once(timeout_sec=0.05)
-        for pid in _children(process.pid):
+        for pid in child_pids(process.pid):
             seconds = _cpu_seconds(pid)
             if seconds is not None:
                 cpu[pid] = (_label(pid), seconds)
