@@ -93,14 +93,15 @@ def realtime_run(out, duration):
                              lambda msg: tick_walls.append(time.monotonic()), contract.PHASE.qos)
     process = _bringup(['--mode', 'realtime', '--out', str(out), '--params', str(params)],
                        domain)
-    cpu = {}
+    cpu, labels = {}, {}
     started = time.monotonic()
     while process.poll() is None:
         executor.spin_once(timeout_sec=0.05)
         for pid in child_pids(process.pid):
+            labels.setdefault(pid, _label(pid))
             seconds = _cpu_seconds(pid)
             if seconds is not None:
-                cpu[pid] = (_label(pid), seconds)
+                cpu[pid] = (labels[pid], seconds)
     wall = time.monotonic() - started
     executor.remove_node(node)
     node.destroy_node()
