@@ -8,6 +8,7 @@ At contact the tool frame coincides with the grasp frame.
 """
 
 from dataclasses import dataclass
+import functools
 
 import numpy as np
 
@@ -29,6 +30,11 @@ class GraspFrame:
 
 def R_object_grasp(arm):
     """Return the rotation of an arm's grasp frame in the object frame (columns x, y, z)."""
+    return _R_object_grasp(arm).copy()
+
+
+@functools.lru_cache(maxsize=None)
+def _R_object_grasp(arm):
     sign = _FACE_SIGN[arm]
     z_axis = np.array([0.0, -sign, 0.0])
     x_axis = np.array([1.0, 0.0, 0.0])
@@ -43,4 +49,4 @@ def p_object_grasp(arm, size, offset=(0.0, 0.0, 0.0)):
 def grasp_frame(arm, p_world_object, R_world_object, size, offset=(0.0, 0.0, 0.0)):
     """Return the world grasp frame of an arm for an object pose and box size [m]."""
     p_world_grasp = p_world_object + R_world_object @ p_object_grasp(arm, size, offset)
-    return GraspFrame(p_world_grasp, R_world_object @ R_object_grasp(arm))
+    return GraspFrame(p_world_grasp, R_world_object @ _R_object_grasp(arm))

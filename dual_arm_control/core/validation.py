@@ -70,6 +70,6 @@ def finite_array(name, value, shape=None):
     array = np.asarray(value, dtype=float)
     if shape is not None and array.shape != tuple(shape):
         raise InputError(f'{name} must have shape {tuple(shape)}, got {array.shape}')
-    if not np.all(np.isfinite(array)):
+    if not np.isfinite(array).all():
         raise InputError(f'{name} contains NaN or Inf')
     return array
