@@ -46,7 +46,7 @@ def test_paper_toss(tmp_path, ros_domain):
     print(json.dumps(m, indent=1))
     assert m['contact_time_gap'] <= 0.010
     for arm in ('left', 'right'):
-        assert m[f'impact_speed_{arm}'] == pytest.approx(0.5, rel=0.15)
+        assert m[f'impact_speed_along_direction_{arm}'] == pytest.approx(0.5, rel=0.15)
     assert m['max_slip'] <= 0.01
     assert m['release_position_error'] <= 0.03
     assert m['release_velocity_error'] <= 0.10

@@ -17,8 +17,8 @@ def test_paper_toss_in_process(cell):
     scenario = load_scenario(scenario_path('paper_toss'), cell=cell)
     metrics = episode_metrics(scenario, run_episode(scenario, cell=cell).trajectory, cell)
     assert metrics['contact_time_gap'] <= 0.010
-    assert metrics['impact_speed_left'] == pytest.approx(0.5, rel=0.15)
-    assert metrics['impact_speed_right'] == pytest.approx(0.5, rel=0.15)
+    assert metrics['impact_speed_along_direction_left'] == pytest.approx(0.5, rel=0.15)
+    assert metrics['impact_speed_along_direction_right'] == pytest.approx(0.5, rel=0.15)
     assert metrics['max_slip'] <= 0.01
     assert metrics['release_position_error'] <= 0.03
     assert metrics['release_velocity_error'] <= 0.10

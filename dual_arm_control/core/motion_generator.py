@@ -175,7 +175,6 @@ class DualArmMotionGenerator:
         self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
-        self._max_tilt = max_impact_tilt(config.impact)
         self._release_object_velocity = np.zeros(3)
 
     @property
@@ -194,7 +193,6 @@ class DualArmMotionGenerator:
         self._phase_machine.select_task(config.task)
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
-        self._max_tilt = max_impact_tilt(config.impact)
         self._standby_positions = np.asarray(config.standby_positions, dtype=float)
         self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
 
@@ -235,8 +233,7 @@ class DualArmMotionGenerator:
         if phase_output.transition is not None and phase is Phase.REACH:
             self._reach_speed.reset(0.0)
         object_velocity = self._object_velocity(p_object, phase, dt)
-        directions = {arm: impact_direction(frames[arm].normal, object_velocity, self._max_tilt)
-                      for arm in ARMS}
+        directions = impact_directions(config, frames, object_velocity)
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
         elif phase in (Phase.CONTACT, Phase.MANIPULATE):
@@ -353,6 +350,23 @@ class DualArmMotionGenerator:
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, target)
         return commands
+
+
+def object_motion_direction(config, p_world_object):
+    """Return the direction (3,) the task's object DS would move the object from p_world_object."""
+    if config.task in _TOSS_TASKS:
+        return toss_velocity(p_world_object, toss_geometry(config.toss,
+                                                           config.coordination)).velocity
+    if config.task is Task.PICK_AND_PLACE:
+        return place_velocity(p_world_object, config.place, config.coordination)
+    return lift_velocity(p_world_object, config.lift, config.coordination)
+
+
+def impact_directions(config, frames, object_velocity):
+    """Return {arm: (3,)} unit impact directions: each face normal tilted toward the motion."""
+    max_tilt = max_impact_tilt(config.impact)
+    return {arm: impact_direction(frames[arm].normal, object_velocity, max_tilt)
+            for arm in ARMS}
 
 
 def with_task_speeds(config, impact_speed=None, toss_speed=None, reach_speed_value=None):

@@ -10,10 +10,12 @@ from pathlib import Path
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.grasp import grasp_frame
+from dual_arm_control.core.motion_generator import impact_directions, object_motion_direction
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import EPISODE_START_TIME
+from dual_arm_control.pipeline import motion_config_for_scenario
 from dual_arm_control.scenario import load_scenario, PLACE_TASKS, TOSS_TASKS
 import numpy as np
 
@@ -44,13 +46,22 @@ def _vector(value):
     return None if value is None else [float(v) for v in value]
 
 
-def _impact_directions(scenario):
-    """Return the inward face normals at the object's initial pose, per arm."""
+def _contact_directions(scenario, cell):
+    """
+    Return ({arm: inward face normal}, {arm: desired impact direction}) at the initial pose.
+
+    The impact directions are the motion generator's own (the normal tilted toward the task's
+    object motion), computed with the scenario's configuration.
+    """
     yaw = scenario.object.yaw
     R_world_object = np.array([[np.cos(yaw), -np.sin(yaw), 0.0],
                                [np.sin(yaw), np.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-    return {arm: grasp_frame(arm, scenario.object.position, R_world_object,
-                             scenario.object.size).normal for arm in ARMS}
+    frames = {arm: grasp_frame(arm, scenario.object.position, R_world_object,
+                               scenario.object.size) for arm in ARMS}
+    config = motion_config_for_scenario(scenario, cell)
+    motion = object_motion_direction(config, scenario.object.position)
+    return ({arm: frames[arm].normal for arm in ARMS},
+            impact_directions(config, frames, motion))
 
 
 def predicted_landing(p_release, v_release, object_height, cell):
@@ -71,13 +82,15 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
     t = data['t'] - start_time
     result = dict.fromkeys(METRIC_KEYS)
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
-    directions = _impact_directions(scenario)
+    normals, directions = _contact_directions(scenario, cell)
     for arm in ARMS:
+        velocity = data[f'{arm}_tool_velocity']
         result[f't_contact_{arm}'] = _time(t, contact_index[arm])
-        result[f'impact_speed_{arm}'] = metrics.impact_speed(
-            data[f'{arm}_tool_velocity'], contact_index[arm])
+        result[f'impact_speed_{arm}'] = metrics.impact_speed(velocity, contact_index[arm])
+        result[f'impact_speed_along_direction_{arm}'] = metrics.impact_speed(
+            velocity, contact_index[arm], directions[arm])
         result[f'impact_speed_along_normal_{arm}'] = metrics.impact_speed(
-            data[f'{arm}_tool_velocity'], contact_index[arm], directions[arm])
+            velocity, contact_index[arm], normals[arm])
     if None not in contact_index.values():
         result['contact_time_gap'] = abs(result['t_contact_left'] - result['t_contact_right'])
     grasp, release = metrics.grasp_and_release_indices(
