@@ -24,6 +24,7 @@ from dual_arm_control.graph import GRAPHS, run_parameters
 from dual_arm_control.resources import config_path, load_yaml
 
 STOP_GRACE_PERIOD = 4.0
+RECORDER_STARTUP_TIMEOUT = 15.0
 POLL_PERIOD = 0.1
 _PR_SET_PDEATHSIG = 1
 
@@ -151,6 +152,41 @@ class Launcher:
         return [process.pid for process in self._processes.values()]
 
 
+def start_recorder(out_dir, env):
+    """
+    Start bag_record into OUT/bag.mcap and wait until its subscriptions exist (--record).
+
+    Returns the process; the graph starts afterwards so that its first messages are recorded
+    as far as DDS discovery allows.
+    """
+    module, function = EXECUTABLES['bag_record'].split(':')
+    log_path = Path(out_dir) / 'logs' / 'bag_record.log'
+    log_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(log_path, 'w') as log_file:
+        process = subprocess.Popen(
+            [sys.executable, '-c', f'import sys; from {module} import {function}; '
+             f'sys.exit({function}())', '-o', str(Path(out_dir) / 'bag.mcap')],
+            stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
+            preexec_fn=_die_with_parent)
+    deadline = time.monotonic() + RECORDER_STARTUP_TIMEOUT
+    while 'recording' not in log_path.read_text() and time.monotonic() < deadline:
+        if process.poll() is not None:
+            break
+        time.sleep(POLL_PERIOD)
+    return process
+
+
+def stop_recorder(process):
+    """SIGINT the recorder (it writes the bag's summary), SIGKILL it after the grace period."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.wait(timeout=STOP_GRACE_PERIOD)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.wait()
+
+
 def parse_arguments(argv=None):
     """Parse the launcher's command line."""
     parser = argparse.ArgumentParser(prog='dual_arm_bringup', description=__doc__.split('\n')[1])
@@ -168,6 +204,9 @@ def parse_arguments(argv=None):
                         help='ROS_DOMAIN_ID for the graph (default: a random free-ish id)')
     parser.add_argument('--timeout', type=float, default=600.0,
                         help='wall-clock limit of an episode [s]')
+    parser.add_argument('--record', action='store_true',
+                        help='record the graph topics into OUT/bag.mcap (bag_record, started '
+                             'before the nodes)')
     return parser.parse_args(argv)
 
 
@@ -191,6 +230,11 @@ def main(argv=None):
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
     print(f'dual_arm_bringup: ROS_DOMAIN_ID={domain_id}, logs in {args.out / "logs"}')
+    recorder = start_recorder(args.out, launcher.environment()) if args.record else None
+    if recorder is not None and recorder.poll() is not None:
+        print(f'dual_arm_bringup: bag_record exited ({recorder.returncode}), see '
+              f'{args.out / "logs" / "bag_record.log"}', file=sys.stderr)
+        return 3
     launcher.start()
     started = time.monotonic()
     status = 0
@@ -214,6 +258,10 @@ def main(argv=None):
             break
         time.sleep(POLL_PERIOD)
     launcher.stop()
+    if recorder is not None and stop_recorder(recorder) != 0:
+        print(f'dual_arm_bringup: bag_record failed, see {args.out / "logs" / "bag_record.log"}',
+              file=sys.stderr)
+        status = status or 3
     if status != 0 or args.scenario is None:
         return status
     return _write_results(args)

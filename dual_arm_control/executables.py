@@ -13,6 +13,8 @@ EXECUTABLES = {
     'passive_controller': 'dual_arm_control.nodes.passive_controller:main',
     'gravity_comp_controller': 'sim_bridge.gravity_comp_controller:main',
     'dual_arm_bringup': 'dual_arm_control.bringup:main',
+    'bag_record': 'dual_arm_control.nodes.bag_record:main',
+    'bag_info': 'dual_arm_control.bags.info:main',
 }
 
 

@@ -1,0 +1,176 @@
+"""
+bag_record: record topics of the graph, as published (serialized CDR), into an MCAP bag.
+
+By default every topic of the contract plus /parameter_events and /rosout; topics given on the
+command line or matching --regex instead. Topics that appear later are found by polling the
+graph every 0.5 s. Contract topics are subscribed with their contract QoS at once (types are
+known); the others with a QoS compatible with their publishers (reliable and transient-local
+only if every publisher offers it, keep-last 100). SIGINT/SIGTERM close the bag with its summary.
+"""
+
+import argparse
+import importlib
+import re
+import sys
+import time
+
+from dual_arm_control import contract
+from dual_arm_control.bags import BagError
+from dual_arm_control.bags.writer import available_compressions, BagWriter, DEFAULT_CHUNK_SIZE
+from dual_arm_control.nodes.common import run_node
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.utilities import remove_ros_args
+
+DISCOVERY_PERIOD = 0.5
+DEFAULT_EXTRA_TOPICS = ('/parameter_events', '/rosout')
+OTHER_TOPIC_DEPTH = 100
+
+
+def contract_topics():
+    """Return {absolute topic name: contract Topic} of every contract topic (both arms)."""
+    topics = {}
+    for topic in contract.ALL_TOPICS:
+        for arm in (contract.ARMS if topic.per_arm else (None,)):
+            topics[topic.resolved(arm)] = topic
+    return topics
+
+
+def message_class(type_name):
+    """Return the Python class of 'package/msg/Type'; raise BagError if it cannot be imported."""
+    parts = type_name.split('/')
+    if len(parts) != 3:
+        raise BagError(f'cannot interpret message type {type_name!r}')
+    try:
+        return getattr(importlib.import_module(f'{parts[0]}.{parts[1]}'), parts[2])
+    except (ImportError, AttributeError) as error:
+        raise BagError(f'message type {type_name} is not installed: {error}') from error
+
+
+def compatible_qos(publishers):
+    """
+    Return a subscription QoS matching every publisher of a non-contract topic.
+
+    Reliable only if all publishers are reliable, transient local only if all are (so late
+    joiners get the latched messages), keep-last OTHER_TOPIC_DEPTH.
+    """
+    reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in publishers)
+    latched = bool(publishers) and all(
+        p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=OTHER_TOPIC_DEPTH,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                    else DurabilityPolicy.VOLATILE))
+
+
+class TopicSelection:
+    """Which topics to record: explicit names, a regular expression, or the default set."""
+
+    def __init__(self, names=(), regex=None):
+        self.names = frozenset(names)
+        self.regex = re.compile(regex) if regex else None
+        if not self.names and self.regex is None:
+            self.names = frozenset(contract_topics()) | frozenset(DEFAULT_EXTRA_TOPICS)
+
+    def wants(self, topic):
+        """Return True if the topic is to be recorded."""
+        return topic in self.names or bool(self.regex and self.regex.search(topic))
+
+
+class BagRecorder(Node):
+    """Subscribe to the selected topics with raw=True and write every message to a BagWriter."""
+
+    def __init__(self, options):
+        super().__init__('bag_record')
+        self._selection = TopicSelection(options.topics, options.regex)
+        self._writer = BagWriter(options.output, compression=options.compression,
+                                 chunk_size=options.chunk_size,
+                                 split_size=options.max_bag_size,
+                                 split_duration=options.max_bag_duration)
+        self._recorded = {}
+        self._contract = contract_topics()
+        for name, topic in self._contract.items():
+            if self._selection.wants(name):
+                self._subscribe(name, topic.msg_type, topic.qos)
+        self._discover()
+        self.create_timer(DISCOVERY_PERIOD, self._discover)
+        self.get_logger().info(f'recording {len(self._recorded)} topics into '
+                               f'{options.output} ({options.compression})')
+
+    @property
+    def counts(self):
+        """Return {topic: messages recorded}."""
+        return self._writer.counts
+
+    def _subscribe(self, name, msg_type, qos):
+        """Register the topic in the bag and subscribe to its serialized messages."""
+        self._writer.add_topic(name, msg_type, qos)
+        self._recorded[name] = self.create_subscription(
+            msg_type, name, lambda data, topic=name: self._record(topic, data), qos, raw=True)
+
+    def _record(self, topic, data):
+        """Write one received message with its receive time."""
+        self._writer.write(topic, data, time.time_ns())
+
+    def _discover(self):
+        """Subscribe to selected topics that appeared in the graph since the last poll."""
+        for name, types in self.get_topic_names_and_types():
+            if name in self._recorded or not self._selection.wants(name):
+                continue
+            if len(types) != 1:
+                self.get_logger().warning(f'not recording {name}: several types {types}')
+                self._selection.names -= {name}
+                continue
+            publishers = self.get_publishers_info_by_topic(name)
+            if not publishers:
+                continue
+            try:
+                self._subscribe(name, message_class(types[0]), compatible_qos(publishers))
+            except BagError as error:
+                self.get_logger().warning(f'not recording {name}: {error}')
+                continue
+            self.get_logger().info(f'recording {name} ({types[0]})')
+
+    def destroy_node(self):
+        """Close the bag (summary written), print the counts (rosout may be gone), destroy."""
+        self._writer.close()
+        counts = self._writer.counts
+        summary = ', '.join(f'{topic}: {count}' for topic, count in sorted(counts.items()))
+        print(f'bag_record: closed {[str(p) for p in self._writer.paths]}: '
+              f'{sum(counts.values())} messages ({summary})', flush=True)
+        return super().destroy_node()
+
+
+def parse_arguments(argv):
+    """Parse the recorder's command line (ROS arguments removed)."""
+    parser = argparse.ArgumentParser(prog='bag_record', description=__doc__.split('\n')[1])
+    parser.add_argument('topics', nargs='*', help='topics to record (default: the contract '
+                        'topics, /parameter_events and /rosout)')
+    parser.add_argument('-o', '--output', default='bag.mcap', help='bag file (.mcap)')
+    parser.add_argument('-e', '--regex', help='record every topic matching this expression')
+    parser.add_argument('--compression', default='zstd', choices=available_compressions())
+    parser.add_argument('--chunk-size', type=int, default=DEFAULT_CHUNK_SIZE,
+                        help='uncompressed chunk size [bytes]')
+    parser.add_argument('--max-bag-size', type=int,
+                        help='start a new file <stem>_<N>.mcap beyond this size [bytes]')
+    parser.add_argument('--max-bag-duration', type=float,
+                        help='start a new file beyond this recording time [s]')
+    options = parser.parse_args(argv)
+    if options.regex is not None:
+        try:
+            re.compile(options.regex)
+        except re.error as error:
+            parser.error(f'invalid --regex {options.regex!r}: {error}')
+    return options
+
+
+def main(argv=None):
+    """Run the recorder until SIGINT/SIGTERM; return the process exit code."""
+    argv = sys.argv if argv is None else argv
+    options = parse_arguments(remove_ros_args(argv)[1:])
+    return run_node(lambda: BagRecorder(options), 'bag_record', args=argv)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

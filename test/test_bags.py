@@ -1,0 +1,447 @@
+"""
+MCAP bags: ros2msg definitions, the writer, the recorder on the real graph, bag_info.
+
+The graph test records a lockstep paper_toss run (1 s of sim time) and checks the bag against
+what the publishers provably sent: every torque command the bridge received and one phase per
+DS tick of the cycles it stepped. rosbags (an independent reader) must decode every message.
+"""
+
+import os
+from pathlib import Path
+import random
+import signal
+import subprocess
+import sys
+import time
+
+from dual_arm_control import contract
+from dual_arm_control.bags import BagError
+from dual_arm_control.bags.info import inspect_bag, main as bag_info_main
+from dual_arm_control.bags.schema import first_field_type, message_definition, type_name
+from dual_arm_control.bags.writer import BagWriter, header_stamp_ns, split_path
+from dual_arm_control.evaluation.trajectory import load_trajectory
+from dual_arm_control.pipeline import seconds_to_ns, TickSchedule
+from graph_helpers import GraphProbe, ros_environment
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.records import Message
+from mcap.stream_reader import StreamReader
+import numpy as np
+import pytest
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+
+SCRIPTS = Path(sys.prefix) / 'bin'
+REPOSITORY = Path(__file__).resolve().parents[1]
+SCENARIO = REPOSITORY / 'config' / 'scenarios' / 'paper_toss.yaml'
+SIM_DURATION = 1.0
+FRI_PERIOD_NS = seconds_to_ns(0.002)
+TICK_PERIOD = 0.005
+STARTUP_TIMEOUT = 20.0
+MAX_DISCOVERY_LOSS_NS = seconds_to_ns(0.01)
+EPISODE_TIMEOUT = 120.0
+STOP_TIMEOUT = 10.0
+TYPESTORE = get_typestore(Stores.LATEST)
+
+
+def contract_types():
+    """Return the message type names of the contract, each once."""
+    return sorted({type_name(topic.msg_type) for topic in contract.ALL_TOPICS})
+
+
+def joint_state_cdr(stamp_sec, stamp_nanosec, positions):
+    """Return a JointState serialized by rosbags (exact CDR length, unlike rmw_serialize)."""
+    types = TYPESTORE.types
+    msg = types['sensor_msgs/msg/JointState'](
+        header=types['std_msgs/msg/Header'](
+            stamp=types['builtin_interfaces/msg/Time'](sec=stamp_sec, nanosec=stamp_nanosec),
+            frame_id='world'),
+        name=['a'], position=np.array(positions, dtype=float), velocity=np.zeros(0),
+        effort=np.zeros(0))
+    return TYPESTORE.serialize_cdr(msg, 'sensor_msgs/msg/JointState')
+
+
+def read_messages(paths):
+    """Return [(topic, log_time, publish_time, data)] of bag files in file order."""
+    records = []
+    for path in paths:
+        with open(path, 'rb') as stream:
+            for _, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+                records.append((channel.topic, message.log_time, message.publish_time,
+                                message.data))
+    return records
+
+
+# -- message definitions -----------------------------------------------------------------------
+
+@pytest.mark.parametrize('name', contract_types())
+def test_definition_describes_the_installed_type(name):
+    """Rosbags parses the definition into the fields of the rclpy class, with dependencies."""
+    definition = message_definition(name)
+    parsed = get_types_from_msg(definition, name)
+    package, _, short_name = name.split('/')
+    msg_class = getattr(__import__(f'{package}.msg', fromlist=[short_name]), short_name)
+    assert [field for field, _ in parsed[name][1]] == list(msg_class.get_fields_and_field_types())
+    dependencies = [line[5:] for line in definition.splitlines() if line.startswith('MSG: ')]
+    assert len(dependencies) == len(set(dependencies)) == len(parsed) - 1
+    assert definition.count('=' * 80 + '\n') == len(dependencies)
+
+
+def test_definition_of_odometry_lists_header_and_time():
+    """Odometry needs Header, Time, the covariance types and the geometry leaves."""
+    definition = message_definition('nav_msgs/msg/Odometry')
+    dependencies = [line[5:] for line in definition.splitlines() if line.startswith('MSG: ')]
+    assert dependencies[:2] == ['std_msgs/msg/Header', 'builtin_interfaces/msg/Time']
+    assert {'geometry_msgs/msg/PoseWithCovariance', 'geometry_msgs/msg/Quaternion',
+            'geometry_msgs/msg/Vector3'} <= set(dependencies)
+    assert first_field_type('nav_msgs/msg/Odometry') == 'std_msgs/msg/Header'
+    assert first_field_type('std_msgs/msg/Bool') == 'bool'
+
+
+def test_unknown_type_is_refused_with_its_name():
+    """A type without a .msg file under share/ is a BagError naming it."""
+    with pytest.raises(BagError, match='no_such_msgs/msg/Thing'):
+        message_definition('no_such_msgs/msg/Thing')
+
+
+# -- writer ------------------------------------------------------------------------------------
+
+def test_writer_round_trip_and_split(tmp_path):
+    """
+    Split files hold every message once, with stamps as publish times and the QoS metadata.
+
+    200 messages of 100 bytes with a 4 KiB size limit and 1 KiB chunks: several files; each
+    is complete on its own and rosbags reads the set back in order.
+    """
+    path = tmp_path / 'split.mcap'
+    with BagWriter(path, compression='lz4', chunk_size=1024, split_size=4096) as writer:
+        writer.add_topic('/left/joint_states', 'sensor_msgs/msg/JointState',
+                         contract.CONTROL_QOS)
+        writer.add_topic('/dual_arm/phase', contract.PHASE.msg_type, contract.PHASE.qos)
+        for index in range(200):
+            writer.write('/left/joint_states', joint_state_cdr(index, 7, [index, 1.0]),
+                         1_000_000 + index)
+    assert len(writer.paths) >= 3
+    assert writer.paths[1] == split_path(path, 1) == tmp_path / 'split_1.mcap'
+    assert writer.counts == {'/left/joint_states': 200, '/dual_arm/phase': 0}
+    records = read_messages(writer.paths)
+    assert [r[1] for r in records] == [1_000_000 + i for i in range(200)]
+    assert [r[2] for r in records] == [i * 1_000_000_000 + 7 for i in range(200)]
+    assert all(inspect_bag(p).status == 'complete' for p in writer.paths)
+    with AnyReader(writer.paths) as reader:
+        positions = [reader.deserialize(raw, c.msgtype).position[0]
+                     for c, _, raw in reader.messages()]
+        qos = {c.topic: c.ext.offered_qos_profiles[0] for c in reader.connections}
+    assert positions == list(range(200))
+    assert qos['/dual_arm/phase'].durability.name == 'TRANSIENT_LOCAL'
+    assert qos['/left/joint_states'].reliability.name == 'RELIABLE'
+    assert qos['/left/joint_states'].depth == contract.CONTROL_QOS.depth
+
+
+def test_writer_refuses_bad_use(tmp_path):
+    """Unknown compression, unregistered topics and writes after close are BagErrors."""
+    with pytest.raises(BagError, match='compression'):
+        BagWriter(tmp_path / 'a.mcap', compression='brotli')
+    writer = BagWriter(tmp_path / 'b.mcap')
+    with pytest.raises(BagError, match='not registered'):
+        writer.write('/nope', b'\x00\x01\x00\x00', 1)
+    writer.close()
+    with pytest.raises(BagError, match='closed'):
+        writer.write('/nope', b'\x00\x01\x00\x00', 1)
+
+
+def test_header_stamp_reads_both_byte_orders():
+    """The stamp after the CDR encapsulation is read in the message's byte order."""
+    little = b'\x00\x01\x00\x00' + (5).to_bytes(4, 'little') + (9).to_bytes(4, 'little')
+    big = b'\x00\x00\x00\x00' + (5).to_bytes(4, 'big') + (9).to_bytes(4, 'big')
+    assert header_stamp_ns(little) == header_stamp_ns(big) == 5_000_000_009
+    assert header_stamp_ns(b'\x00\x01') is None
+
+
+# -- the recorder on the real graph ------------------------------------------------------------
+
+def start_recorder(tmp_path, domain_id, output, *arguments):
+    """Start bag_record in a domain; return the process once its subscriptions exist."""
+    log_path = tmp_path / f'{Path(output).stem}_record.log'
+    log_file = open(log_path, 'w')
+    process = subprocess.Popen(
+        [str(SCRIPTS / 'bag_record'), '-o', str(output), *arguments],
+        stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+        env=ros_environment(domain_id))
+    log_file.close()
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while 'recording' not in log_path.read_text():
+        assert process.poll() is None and time.monotonic() < deadline, log_path.read_text()
+        time.sleep(0.1)
+    return process, log_path
+
+
+def stop_process(process, sig=signal.SIGINT):
+    """Signal a process and wait for it; return (exit code, resource usage)."""
+    process.send_signal(sig)
+    deadline = time.monotonic() + STOP_TIMEOUT
+    while time.monotonic() < deadline:
+        pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+        if pid:
+            process.returncode = os.waitstatus_to_exitcode(status)
+            return process.returncode, usage
+        time.sleep(0.05)
+    process.kill()
+    process.wait()
+    raise AssertionError(f'process {process.args[0]} did not stop on {sig!r}')
+
+
+@pytest.fixture(scope='module')
+def graph_bag(tmp_path_factory):
+    """Record a 1 s lockstep paper_toss run; return (bag path, trajectory log, measurements)."""
+    tmp_path = tmp_path_factory.mktemp('graph_bag')
+    domain_id = random.SystemRandom().randint(1, 200)
+    params = tmp_path / 'params.yaml'
+    params.write_text(f'sim_bridge:\n  ros__parameters:\n    duration: {SIM_DURATION}\n')
+    bag = tmp_path / 'graph.mcap'
+    recorder, log_path = start_recorder(tmp_path, domain_id, bag)
+    try:
+        started = time.monotonic()
+        bringup = subprocess.run(
+            [str(SCRIPTS / 'dual_arm_bringup'), '--scenario', str(SCENARIO), '--params',
+             str(params), '--out', str(tmp_path / 'run'), '--domain-id', str(domain_id)],
+            capture_output=True, text=True, timeout=EPISODE_TIMEOUT, env=dict(os.environ))
+        graph_wall = time.monotonic() - started
+    finally:
+        exit_code, usage = stop_process(recorder)
+    assert exit_code == 0, log_path.read_text()
+    assert bringup.returncode in (0, 1), bringup.stdout + bringup.stderr
+    measurements = {'graph_wall': graph_wall, 'recorder_cpu': usage.ru_utime + usage.ru_stime,
+                    'recorder_log': log_path.read_text()}
+    return bag, load_trajectory(tmp_path / 'run' / 'trajectory.npz'), measurements
+
+
+def stamps_of(records, topic):
+    """Return the publish times (header stamps) of a topic's records, in file order."""
+    return [publish_time for name, _, publish_time, _ in records if name == topic]
+
+
+def test_recorded_counts_match_what_was_published(graph_bag):
+    """
+    From the moment a publisher matched the recorder, every message it sent is in the bag.
+
+    Volatile messages sent before a fresh publisher has matched the recorder's subscription
+    (DDS discovery takes a few ms) cannot be recorded: the first recorded stamp of each
+    per-cycle topic must lie within the first MAX_DISCOVERY_LOSS_NS of sim time, and from it
+    on every cycle is there exactly once. The bridge stepped `cycles` cycles and received one
+    accepted command per arm and cycle; an answer to the last state, which it no longer waits
+    for, may be recorded too. The phase is transient local, so the recorder gets its history
+    on matching: one per DS tick (TickSchedule) of the stepped cycles, nothing lost.
+    """
+    bag, log, measurements = graph_bag
+    records = read_messages([bag])
+    cycles = int(log['cycles'])
+    last_stepped_ns = (cycles - 1) * FRI_PERIOD_NS
+    lost = {}
+    for arm in contract.ARMS:
+        assert int(log[f'{arm}_commands_accepted']) == cycles
+        for topic in (contract.TORQUE_COMMAND, contract.JOINT_STATES, contract.FT_WRENCH):
+            name = topic.resolved(arm)
+            stamps = [s for s in stamps_of(records, name) if s <= last_stepped_ns]
+            first = stamps[0]
+            assert first <= MAX_DISCOVERY_LOSS_NS
+            expected = list(range(first, last_stepped_ns + 1, FRI_PERIOD_NS))
+            if topic is contract.TORQUE_COMMAND and int(log[f'{arm}_ignored_commands']) == 0:
+                assert stamps == expected
+            else:
+                assert sorted(set(stamps)) == expected
+            lost[name] = first // FRI_PERIOD_NS
+    schedule = TickSchedule(TICK_PERIOD)
+    ticks = []
+    for k in range(cycles + 1):
+        if schedule.due(k * FRI_PERIOD_NS):
+            schedule.take(k * FRI_PERIOD_NS)
+            ticks.append(k * FRI_PERIOD_NS)
+    phase = stamps_of(records, contract.PHASE.name)
+    assert sorted(set(phase)) in (ticks, ticks[:-1])
+    assert [s for s in phase if s > 0] == [s for s in sorted(set(phase)) if s > 0]
+    assert len(ticks) > 150
+    print(f'\ncycles {cycles}, DS ticks {len(ticks)}, phase messages {len(phase)} '
+          f'({phase.count(0)} stamped 0); cycles lost to discovery: {lost}')
+    log_times = [log_time for _, log_time, _, _ in records]
+    assert all(b >= a for a, b in zip(log_times, log_times[1:]))
+    clock = [log_time for name, log_time, _, _ in records if name == contract.CLOCK.name]
+    span = (clock[-1] - clock[0]) * 1e-9
+    size = sum(len(data) for *_, data in records)
+    print(f'\nrecorded {len(records)} messages ({size / 1e6:.2f} MB serialized, bag '
+          f'{bag.stat().st_size / 1e6:.2f} MB) in {span:.2f} s of graph traffic: '
+          f'{len(records) / span:.0f} msg/s, {size / 1e6 / span:.2f} MB/s; recorder CPU '
+          f'{measurements["recorder_cpu"]:.2f} s over the {measurements["graph_wall"]:.1f} s '
+          f'graph run ({100 * measurements["recorder_cpu"] / measurements["graph_wall"]:.0f} % '
+          f'of one core)')
+
+
+def test_independent_readers_agree(graph_bag):
+    """Rosbags decodes every message; summary, full scan and rosbags agree on the counts."""
+    bag, _, _ = graph_bag
+    with open(bag, 'rb') as stream:
+        reader = make_reader(stream)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        scanned = {}
+        for schema, channel, _ in reader.iter_messages():
+            assert schema.encoding == 'ros2msg' and channel.message_encoding == 'cdr'
+            assert 'offered_qos_profiles' in channel.metadata
+            scanned[channel.topic] = scanned.get(channel.topic, 0) + 1
+    assert header.profile == 'ros2'
+    from_summary = {summary.channels[c].topic: n
+                    for c, n in summary.statistics.channel_message_counts.items() if n}
+    assert from_summary == scanned
+    decoded = {}
+    with AnyReader([bag]) as reader:
+        for connection, _, raw in reader.messages():
+            msg = reader.deserialize(raw, connection.msgtype)
+            assert msg.__msgtype__ == connection.msgtype
+            decoded[connection.topic] = decoded.get(connection.topic, 0) + 1
+    assert decoded == scanned
+    expected = {contract.CLOCK.name, contract.PHASE.name, '/left/joint_states',
+                '/right/torque_command', contract.OBJECT_STATE.name, '/rosout'}
+    assert expected <= set(decoded)
+    info = inspect_bag(bag)
+    assert info.status == 'complete' and info.compressions == {'zstd'}
+    assert {name: topic.count for name, topic in info.topics.items() if topic.count} == scanned
+
+
+def test_recorder_qos_follows_publishers():
+    """Non-contract topics: reliable/latched only if every publisher offers it."""
+    from dual_arm_control.nodes.bag_record import compatible_qos
+
+    class Publisher:
+        def __init__(self, reliability, durability):
+            self.qos_profile = type('Q', (), {'reliability': reliability,
+                                              'durability': durability})
+
+    reliable = Publisher(ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL)
+    best_effort = Publisher(ReliabilityPolicy.BEST_EFFORT, DurabilityPolicy.VOLATILE)
+    both = compatible_qos([reliable, best_effort])
+    assert both.reliability == ReliabilityPolicy.BEST_EFFORT
+    assert both.durability == DurabilityPolicy.VOLATILE
+    latched = compatible_qos([reliable])
+    assert latched.reliability == ReliabilityPolicy.RELIABLE
+    assert latched.durability == DurabilityPolicy.TRANSIENT_LOCAL and latched.depth == 100
+
+
+# -- torn, truncated and garbage files ---------------------------------------------------------
+
+def messages_before_tear(path):
+    """Count the messages mcap's streaming reader yields before it hits the tear."""
+    count = 0
+    with open(path, 'rb') as stream:
+        try:
+            for record in StreamReader(stream).records:
+                count += isinstance(record, Message)
+        except (McapError, EOFError, ValueError):
+            pass
+    return count
+
+
+def bag_info(capsys, path):
+    """Run bag_info on one file; return (exit code, stdout, stderr)."""
+    code = bag_info_main([str(path)])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_killed_recorder_leaves_a_recoverable_torn_bag(tmp_path):
+    """
+    SIGKILL mid-recording: bag_info says 'torn' and recovers exactly the complete chunks.
+
+    A probe publishes 4000 JointStates into the recorder (4 KiB chunks, no compression); the
+    count recovered equals what mcap's own streaming reader yields before the tear.
+    """
+    domain_id = random.SystemRandom().randint(1, 200)
+    bag = tmp_path / 'torn.mcap'
+    recorder, log_path = start_recorder(tmp_path, domain_id, bag, '/probe/joint_states',
+                                        '--chunk-size', '4096', '--compression', 'none')
+    probe = GraphProbe(domain_id, 'bag_probe')
+    try:
+        from sensor_msgs.msg import JointState
+        publisher = probe.node.create_publisher(JointState, '/probe/joint_states',
+                                                contract.CONTROL_QOS)
+        assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, STARTUP_TIMEOUT)
+        msg = JointState(name=['a'] * 7, position=[1.0] * 7)
+        for index in range(4000):
+            msg.header.stamp.sec = index
+            publisher.publish(msg)
+            if index % 200 == 0:
+                probe.executor.spin_once(timeout_sec=0.001)
+        time.sleep(1.0)
+        stop_process(recorder, signal.SIGKILL)
+    finally:
+        probe.close()
+        if recorder.poll() is None:
+            recorder.kill()
+    info = inspect_bag(bag)
+    assert info.status == 'torn', info.problem
+    assert info.chunk_count >= 5
+    assert 0 < info.message_count == messages_before_tear(bag) <= 4000
+    assert info.topics['/probe/joint_states'].type_name == 'sensor_msgs/msg/JointState'
+    script = subprocess.run([str(SCRIPTS / 'bag_info'), str(bag)], capture_output=True,
+                            text=True, timeout=30)
+    assert script.returncode == 1 and 'Status:            torn' in script.stdout
+    assert len(script.stderr.strip().splitlines()) == 1
+    assert f'recovered {info.message_count}' in script.stderr
+
+
+def test_truncated_and_garbage_files_give_one_line_errors(graph_bag, tmp_path, capsys):
+    """Cut data, cut summary, a stub, garbage and a damaged chunk: exit 1, one stderr line."""
+    bag, _, _ = graph_bag
+    data = bag.read_bytes()
+    complete = inspect_bag(bag)
+    cases = {
+        'half.mcap': (data[:len(data) // 2], 'torn'),
+        'summary_cut.mcap': (data[:len(data) - 200], 'truncated'),
+    }
+    for name, (content, status) in cases.items():
+        path = tmp_path / name
+        path.write_bytes(content)
+        info = inspect_bag(path)
+        assert info.status == status, info.problem
+        assert info.message_count <= complete.message_count
+        code, out, err = bag_info(capsys, path)
+        assert code == 1 and len(err.strip().splitlines()) == 1 and 'Traceback' not in err
+    assert inspect_bag(tmp_path / 'summary_cut.mcap').message_count == complete.message_count
+    first_chunk_damaged = bytearray(data[:len(data) // 2])
+    first_chunk_damaged[300] ^= 0xFF
+    errors = {'stub.mcap': (data[:5], 'shorter than the MCAP magic'),
+              'garbage.mcap': (random.Random(3).randbytes(5000), 'not an MCAP file'),
+              'damaged.mcap': (bytes(first_chunk_damaged), 'damaged')}
+    for name, (content, expected) in errors.items():
+        path = tmp_path / name
+        path.write_bytes(content)
+        code, out, err = bag_info(capsys, path)
+        assert code == 1 and expected in err and len(err.strip().splitlines()) == 1, err
+    code, _, err = bag_info(capsys, tmp_path / 'missing.mcap')
+    assert code == 1 and 'cannot read' in err
+    script = subprocess.run([str(SCRIPTS / 'bag_info'), str(tmp_path / 'garbage.mcap')],
+                            capture_output=True, text=True, timeout=30)
+    assert script.returncode == 1 and script.stderr.count('\n') == 1
+    assert script.stderr.startswith('bag_info: ')
+
+
+def test_bringup_record_flag_writes_a_complete_bag(tmp_path):
+    """
+    `dual_arm_bringup --record` leaves OUT/bag.mcap, complete, with every phase of the run.
+
+    0.2 s of sim time: the phase is transient local, so all its ticks up to the last stepped
+    cycle (40 at 200 Hz) are recorded whatever the discovery timing.
+    """
+    params = tmp_path / 'params.yaml'
+    params.write_text('sim_bridge:\n  ros__parameters:\n    duration: 0.2\n')
+    out = tmp_path / 'run'
+    bringup = subprocess.run(
+        [str(SCRIPTS / 'dual_arm_bringup'), '--scenario', str(SCENARIO), '--params',
+         str(params), '--out', str(out), '--record',
+         '--domain-id', str(random.SystemRandom().randint(1, 200))],
+        capture_output=True, text=True, timeout=EPISODE_TIMEOUT, env=dict(os.environ))
+    assert bringup.returncode in (0, 1), bringup.stdout + bringup.stderr
+    info = inspect_bag(out / 'bag.mcap')
+    assert info.status == 'complete', (out / 'logs' / 'bag_record.log').read_text()
+    assert info.topics[contract.PHASE.name].count == 40
+    assert 'closed' in (out / 'logs' / 'bag_record.log').read_text()
