@@ -222,7 +222,7 @@ def main(argv=None):
     trajectory_log = (args.out / 'trajectory.npz').resolve() if args.scenario else None
     launcher = Launcher(GRAPHS[args.graph](), args.out, domain_id, args.params,
                         run_parameters(args.graph, args.scenario and args.scenario.resolve(),
-                                       args.mode, trajectory_log))
+                                       args.mode, trajectory_log, args.record))
 
     def request_stop(signum, frame):
         launcher.stop_requested = True

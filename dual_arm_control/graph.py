@@ -61,9 +61,11 @@ EPISODE_START_TIME = 0.3
 RUN_FOREVER = 1.0e6
 
 
-def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None):
+def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None, record=False):
     """Return {node name: {parameter: value}} for one run of a graph."""
     parameters = {'sim_bridge': {'mode': mode}}
+    if record:
+        parameters['sim_bridge']['lockstep_wait_for_subscribers'] = True
     if scenario is not None:
         parameters['sim_bridge']['scenario'] = str(scenario)
     else:

@@ -156,6 +156,8 @@ class SimBridge(Node):
                                   and self.get_parameter('lockstep_wait_for_tracker').value)
         self._mocap_samples = []
         self._awaited_tracker_ns = set()
+        self._wait_for_subscribers = (self.mode == 'lockstep' and self.get_parameter(
+            'lockstep_wait_for_subscribers').value)
         self._diagnostics_period_ns = seconds_to_ns(
             self.get_parameter('diagnostics_period').value)
         self._ground_truth_period_ns = seconds_to_ns(
@@ -238,6 +240,11 @@ class SimBridge(Node):
             _descriptor('lockstep: publish the mocap samples of a cycle first and the rest of '
                         'the state only after the object tracker answered each of them (an '
                         '/object/state with the stamp of the sample)', read_only=True))
+        self.declare_parameter(
+            'lockstep_wait_for_subscribers', False,
+            _descriptor('lockstep: hold the first cycle until every topic the bridge publishes '
+                        'has a subscriber (a recorder that must see the run from its start)',
+                        read_only=True))
         self.declare_parameter(
             'diagnostics_period', 1.0,
             _descriptor('sim time between /diagnostics messages [s]',
@@ -322,8 +329,26 @@ class SimBridge(Node):
             self._warn_throttled((arm, reason), f'{arm} torque command refused ({reason}): names '
                                  f'{list(msg.name)}, {len(msg.effort)} efforts; the arm holds '
                                  f'(refusals so far: {counters.refused})')
-        if self.mode == 'lockstep' and all(a is not None for a in self._answers.values()):
+        if self.mode == 'lockstep' and self._all_answered() and self._subscribers_ready():
             self._advance()
+
+    def _all_answered(self):
+        """Return True once every arm answered the awaited cycle."""
+        return all(answer is not None for answer in self._answers.values())
+
+    def _subscribers_ready(self):
+        """Return True unless the first cycle must wait for every topic to have a subscriber."""
+        if not self._wait_for_subscribers or self.cycles > 0:
+            return True
+        return all(stream.publisher.get_subscription_count() > 0 for stream in self._streams())
+
+    def _streams(self):
+        """Return every state and ground-truth stream the bridge publishes."""
+        streams = [self._clock_stream, self._mocap, self._object_truth]
+        for per_arm in (self._joint_states, self._ft, self._tool_truth, self._pad_wrench_truth,
+                        self._pad_contact_truth):
+            streams += list(per_arm.values())
+        return streams
 
     def _on_fri_tick(self):
         """Realtime: one FRI cycle; an arm without a command for the last cycle holds."""
@@ -358,6 +383,9 @@ class SimBridge(Node):
     def _on_republish_timer(self):
         """Lockstep: publish the awaited mocap samples or state again if answers are overdue."""
         if time.monotonic() - self._last_publish_wall < self._republish_period:
+            return
+        if self.mode == 'lockstep' and self._all_answered() and self._subscribers_ready():
+            self._advance()
             return
         if self._awaited_tracker_ns:
             self._publish_mocap()
