@@ -20,18 +20,20 @@ ARMS = ('left', 'right')
 JOINTS_PER_ARM = 7
 WORLD_FRAME = 'world'
 
-# Control-loop traffic: every message matters in lockstep, and a late one must not block a
-# newer one. Reliable with a short keep-last queue on both sides.
+# Messages a reliable publisher keeps for a subscriber that falls behind (a recorder under load):
+# 100 FRI cycles of one topic.
+HISTORY_DEPTH = 100
+# Control-loop traffic: every message matters in lockstep. Reliable, keep-last HISTORY_DEPTH.
 CONTROL_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE)
 # Sensor-like streams that a late subscriber may join (mocap, ground truth, markers).
 SENSOR_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE)
 # The phase is a state: a late subscriber gets the latest ones; every tick's is delivered.
 LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+    history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 

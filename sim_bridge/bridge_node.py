@@ -60,6 +60,9 @@ LOG_THROTTLE_PERIOD = 1.0
 # Lockstep: wall time without answers before the wait is reported as a warning [s].
 WAITING_WARNING_DELAY = 2.0
 MAX_DURATION = 1.0e6
+# lockstep_wait_for_subscribers: wall time to let the other nodes' publishers match the
+# subscriber (a recorder) once every bridge topic has one, before the first state [s].
+SUBSCRIBER_SETTLE_TIME = 1.0
 MAX_OBJECT_DISPLACEMENT = 2.0
 
 
@@ -181,7 +184,10 @@ class SimBridge(Node):
         self._last_applied = {}
 
         self._create_interfaces()
-        self._start_episode()
+        self._started = False
+        self._subscribed_wall = None
+        if not self._wait_for_subscribers:
+            self._start_episode()
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         if self.mode == 'lockstep':
             self._timer = self.create_timer(self._republish_period / 2.0, self._on_republish_timer,
@@ -242,8 +248,8 @@ class SimBridge(Node):
                         '/object/state with the stamp of the sample)', read_only=True))
         self.declare_parameter(
             'lockstep_wait_for_subscribers', False,
-            _descriptor('lockstep: hold the first cycle until every topic the bridge publishes '
-                        'has a subscriber (a recorder that must see the run from its start)',
+            _descriptor('lockstep: publish the first state only once every topic the bridge '
+                        'publishes has a subscriber (a recorder that must see every cycle)',
                         read_only=True))
         self.declare_parameter(
             'diagnostics_period', 1.0,
@@ -329,18 +335,12 @@ class SimBridge(Node):
             self._warn_throttled((arm, reason), f'{arm} torque command refused ({reason}): names '
                                  f'{list(msg.name)}, {len(msg.effort)} efforts; the arm holds '
                                  f'(refusals so far: {counters.refused})')
-        if self.mode == 'lockstep' and self._all_answered() and self._subscribers_ready():
+        if self.mode == 'lockstep' and self._all_answered():
             self._advance()
 
     def _all_answered(self):
         """Return True once every arm answered the awaited cycle."""
         return all(answer is not None for answer in self._answers.values())
-
-    def _subscribers_ready(self):
-        """Return True unless the first cycle must wait for every topic to have a subscriber."""
-        if not self._wait_for_subscribers or self.cycles > 0:
-            return True
-        return all(stream.publisher.get_subscription_count() > 0 for stream in self._streams())
 
     def _streams(self):
         """Return every state and ground-truth stream the bridge publishes."""
@@ -384,8 +384,13 @@ class SimBridge(Node):
         """Lockstep: publish the awaited mocap samples or state again if answers are overdue."""
         if time.monotonic() - self._last_publish_wall < self._republish_period:
             return
-        if self.mode == 'lockstep' and self._all_answered() and self._subscribers_ready():
-            self._advance()
+        if not self._started:
+            if not all(s.publisher.get_subscription_count() > 0 for s in self._streams()):
+                self._subscribed_wall = None
+            elif self._subscribed_wall is None:
+                self._subscribed_wall = time.monotonic()
+            elif time.monotonic() - self._subscribed_wall >= SUBSCRIBER_SETTLE_TIME:
+                self._start_episode()
             return
         if self._awaited_tracker_ns:
             self._publish_mocap()
@@ -432,7 +437,13 @@ class SimBridge(Node):
                 f'factor {bridge["real_time_factor"]:.2f}); stopping')
 
     def _start_episode(self):
-        """Start recording and publish the initial state (after construction and reset)."""
+        """
+        Start recording and publish the initial state (after construction and reset).
+
+        With lockstep_wait_for_subscribers the first start waits (republish timer) until every
+        topic the bridge publishes has a subscriber, so a recorder sees every cycle from 0.
+        """
+        self._started = True
         self._last_applied = {arm: np.zeros(contract.JOINTS_PER_ARM) for arm in contract.ARMS}
         if self._trajectory_log:
             self._recorder = TrajectoryRecorder()

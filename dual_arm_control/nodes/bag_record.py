@@ -47,6 +47,11 @@ def message_class(type_name):
         raise BagError(f'message type {type_name} is not installed: {error}') from error
 
 
+# The recorder's own queue per topic: it may fall behind the lockstep graph by this many
+# messages of a topic without losing one (the publishers keep contract.HISTORY_DEPTH).
+RECORDER_DEPTH = 1000
+
+
 def compatible_qos(publishers):
     """
     Return a subscription QoS matching every publisher of a non-contract topic.
@@ -106,6 +111,8 @@ class BagRecorder(Node):
     def _subscribe(self, name, msg_type, qos):
         """Register the topic in the bag and subscribe to its serialized messages."""
         self._writer.add_topic(name, msg_type, qos)
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=RECORDER_DEPTH,
+                         reliability=qos.reliability, durability=qos.durability)
         self._recorded[name] = self.create_subscription(
             msg_type, name, lambda data, topic=name: self._record(topic, data), qos, raw=True)
 
