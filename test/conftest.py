@@ -12,6 +12,9 @@ SOURCE_ROOT = Path(__file__).resolve().parent.parent
 os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+# Tests kill processes (SIGKILL) on purpose; Fast DDS shared-memory segments they leave behind
+# made later discovery in the same session intermittently fail. UDP loopback has no such state.
+os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
 
 
 @pytest.fixture
