@@ -37,11 +37,16 @@ def _die_with_parent():
         pass
 
 
+def executable_command(executable):
+    """Return the argv that runs one of the package's executables with this Python."""
+    module, function = EXECUTABLES[executable].split(':')
+    return [sys.executable, '-c',
+            f'import sys; from {module} import {function}; sys.exit({function}())']
+
+
 def node_command(spec, ros_arguments, skip=()):
     """Return the argv of one node of the table, its parameters but those in skip, arguments."""
-    module, function = EXECUTABLES[spec.executable].split(':')
-    launcher_code = f'import sys; from {module} import {function}; sys.exit({function}())'
-    args = [sys.executable, '-c', launcher_code, '--ros-args', '-r', f'__node:={spec.name}']
+    args = executable_command(spec.executable) + ['--ros-args', '-r', f'__node:={spec.name}']
     if spec.namespace:
         args += ['-r', f'__ns:={spec.namespace}']
     for param_file in spec.param_files:
@@ -159,13 +164,11 @@ def start_recorder(out_dir, env):
     Returns the process; the graph starts afterwards so that its first messages are recorded
     as far as DDS discovery allows.
     """
-    module, function = EXECUTABLES['bag_record'].split(':')
     log_path = Path(out_dir) / 'logs' / 'bag_record.log'
     log_path.parent.mkdir(parents=True, exist_ok=True)
     with open(log_path, 'w') as log_file:
         process = subprocess.Popen(
-            [sys.executable, '-c', f'import sys; from {module} import {function}; '
-             f'sys.exit({function}())', '-o', str(Path(out_dir) / 'bag.mcap')],
+            executable_command('bag_record') + ['-o', str(Path(out_dir) / 'bag.mcap')],
             stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
             preexec_fn=_die_with_parent)
     deadline = time.monotonic() + RECORDER_STARTUP_TIMEOUT

@@ -39,11 +39,10 @@ class RunnerConfig:
 
 @dataclass
 class EpisodeLog:
-    """What an in-process run produced: ground truth and the controller's own record."""
+    """What an in-process run produced: ground truth and the phase at every DS tick."""
 
     trajectory: dict
     phases: list = field(default_factory=list)
-    commands: list = field(default_factory=list)
 
 
 def run_episode(scenario, config=None, cell=None, duration=None):

@@ -7,7 +7,7 @@ impact (eqs. 1-6), the object DS of the task (eqs. 7-9, lift, place), the orient
 release / retract motions. Time enters as dt; nothing reads a clock.
 """
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.contact import (ContactConfig, ContactDetector, FtBiasEstimator,
@@ -367,14 +367,3 @@ def impact_directions(config, frames, object_velocity):
     max_tilt = max_impact_tilt(config.impact)
     return {arm: impact_direction(frames[arm].normal, object_velocity, max_tilt)
             for arm in ARMS}
-
-
-def with_task_speeds(config, impact_speed=None, toss_speed=None, reach_speed_value=None):
-    """Return config with the scenario's task speeds [m/s] applied to its components."""
-    if impact_speed is not None:
-        config = replace(config, impact=replace(config.impact, impact_speed=impact_speed))
-    if toss_speed is not None:
-        config = replace(config, toss=replace(config.toss, toss_speed=toss_speed))
-    if reach_speed_value is not None:
-        config = replace(config, speed=replace(config.speed, reach_speed=reach_speed_value))
-    return config
