@@ -193,7 +193,8 @@ def test_bad_commands_are_refused_counted_and_the_arm_holds(tmp_path, ros_domain
 
 def test_realtime_watchdog_holds_an_arm_whose_controller_stops(tmp_path, ros_domain):
     log_path = tmp_path / 'realtime.npz'
-    duration = 3.0
+    # Long enough that a probe discovering the bridge seconds late still sees it run.
+    duration = 8.0
     probe = GraphProbe(ros_domain)
     sim_time = []
     probe.node.create_subscription(
@@ -205,7 +206,9 @@ def test_realtime_watchdog_holds_an_arm_whose_controller_stops(tmp_path, ros_dom
                 graph.start_controller(arm, mode='gravity')
             graph.start_bridge(mode='realtime', duration=duration,
                                trajectory_log=str(log_path), publish_ground_truth=False)
-            assert probe.spin_until(lambda: sim_time and sim_time[-1] >= 1.0, BRIDGE_TIMEOUT)
+            assert probe.spin_until(lambda: sim_time and sim_time[-1] >= 1.0, BRIDGE_TIMEOUT), (
+                graph.log('sim_bridge'))
+            assert sim_time[-1] < duration - 2.0, 'the probe saw the bridge too late'
             graph.stop('right_controller')
             stopped_at = sim_time[-1]
             assert probe.spin_until(lambda: graph.poll('sim_bridge') is not None,
