@@ -23,6 +23,9 @@ WORLD_FRAME = 'world'
 # Messages a reliable publisher keeps for a subscriber that falls behind (a recorder under load):
 # 100 FRI cycles of one topic.
 HISTORY_DEPTH = 100
+# Publishers keep this many of their latest messages for a reliable subscriber that falls
+# behind (a recorder under load): 2 s of FRI cycles of one topic.
+PUBLISHER_HISTORY_DEPTH = 1000
 # Control-loop traffic: every message matters in lockstep. Reliable, keep-last HISTORY_DEPTH.
 CONTROL_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
@@ -52,6 +55,13 @@ class Topic:
     msg_type: type
     qos: QoSProfile
     per_arm: bool = False
+
+    @property
+    def publisher_qos(self):
+        """Return the QoS publishers offer: the topic's, with PUBLISHER_HISTORY_DEPTH."""
+        return QoSProfile(history=self.qos.history,
+                          depth=max(self.qos.depth, PUBLISHER_HISTORY_DEPTH),
+                          reliability=self.qos.reliability, durability=self.qos.durability)
 
     def resolved(self, arm=None):
         """Return the absolute topic name, for the given arm if the topic is per arm."""

@@ -22,6 +22,11 @@ class NodeSpec:
     param_files: tuple = ()
 
     @property
+    def full_name(self):
+        """Return the node's fully qualified name, e.g. /left/passive_controller."""
+        return f'{self.namespace.rstrip("/")}/{self.name}'
+
+    @property
     def label(self):
         """Return a unique, file-name-safe label, used for log files."""
         return f'{self.namespace.strip("/")}_{self.name}' if self.namespace else self.name
@@ -54,6 +59,8 @@ def hold_graph():
 
 
 GRAPHS = {'full': full_graph, 'hold': hold_graph}
+# The node name of bag_record, which the bridge awaits in a recorded lockstep run.
+RECORDER_NODE = '/bag_record'
 
 # Sim time at which an episode starts by itself: after the FT sensors' tare window.
 EPISODE_START_TIME = 0.3
@@ -66,6 +73,8 @@ def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None, r
     parameters = {'sim_bridge': {'mode': mode}}
     if record:
         parameters['sim_bridge']['lockstep_wait_for_subscribers'] = True
+        parameters['sim_bridge']['lockstep_wait_for_nodes'] = [
+            RECORDER_NODE, *(spec.full_name for spec in GRAPHS[graph]())]
     if scenario is not None:
         parameters['sim_bridge']['scenario'] = str(scenario)
     else:

@@ -34,19 +34,18 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
-from dual_arm_control.core.exceptions import ConfigError, DualArmControlError, InputError
+from dual_arm_control.core.exceptions import DualArmControlError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
-from dual_arm_control.nodes.common import seconds_to_ns, stamp_ns, time_msg
+from dual_arm_control.nodes.common import (create_topic_publisher, run_node, seconds_to_ns,
+                                           stamp_ns, time_msg)
 from dual_arm_control.resources import config_path
 from dual_arm_control.scenario import load_scenario
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental import EventsExecutor
-from rclpy.node import Node
+from rclpy.node import Node, NodeNameNonExistentError
 from sim_bridge.twin import DualArmTwin
 from std_srvs.srv import Trigger
 
@@ -61,7 +60,7 @@ LOG_THROTTLE_PERIOD = 1.0
 WAITING_WARNING_DELAY = 2.0
 MAX_DURATION = 1.0e6
 # lockstep_wait_for_subscribers: wall time to let the other nodes' publishers match the
-# subscriber (a recorder) once every bridge topic has one, before the first state [s].
+# subscriber (a recorder) once the graph is complete, before the first state [s].
 SUBSCRIBER_SETTLE_TIME = 1.0
 MAX_OBJECT_DISPLACEMENT = 2.0
 
@@ -161,6 +160,8 @@ class SimBridge(Node):
         self._awaited_tracker_ns = set()
         self._wait_for_subscribers = (self.mode == 'lockstep' and self.get_parameter(
             'lockstep_wait_for_subscribers').value)
+        self._awaited_nodes = [name for name in
+                               self.get_parameter('lockstep_wait_for_nodes').value if name]
         self._diagnostics_period_ns = seconds_to_ns(
             self.get_parameter('diagnostics_period').value)
         self._ground_truth_period_ns = seconds_to_ns(
@@ -252,6 +253,12 @@ class SimBridge(Node):
                         'publishes has a subscriber (a recorder that must see every cycle)',
                         read_only=True))
         self.declare_parameter(
+            'lockstep_wait_for_nodes', [''],
+            _descriptor('lockstep: with lockstep_wait_for_subscribers, also wait until these '
+                        'nodes (full names, e.g. /bag_record) and their publishers are in the '
+                        "graph, so a recorder matches every node's publishers before the first "
+                        "state ('' entries are ignored)", read_only=True))
+        self.declare_parameter(
             'diagnostics_period', 1.0,
             _descriptor('sim time between /diagnostics messages [s]',
                         floating_range=(0.01, 100.0)))
@@ -260,8 +267,7 @@ class SimBridge(Node):
         """Create publishers (each with its reused message), subscriptions and services."""
         self._clock_stream = _Stream(self, contract.CLOCK)
         self._mocap = _Stream(self, contract.MOCAP_OBJECT_POSE, frame_id=contract.WORLD_FRAME)
-        self._diagnostics_pub = self.create_publisher(
-            contract.DIAGNOSTICS.msg_type, contract.DIAGNOSTICS.name, contract.DIAGNOSTICS.qos)
+        self._diagnostics_pub = create_topic_publisher(self, contract.DIAGNOSTICS)
         self._object_truth = _Stream(self, contract.GROUND_TRUTH_OBJECT,
                                      frame_id=contract.WORLD_FRAME, child_frame_id='object')
         self._joint_states, self._ft, self._tool_truth = {}, {}, {}
@@ -342,6 +348,23 @@ class SimBridge(Node):
         """Return True once every arm answered the awaited cycle."""
         return all(answer is not None for answer in self._answers.values())
 
+    def _graph_ready(self):
+        """Return True once every stream has a subscriber and the awaited nodes publish."""
+        if not all(s.publisher.get_subscription_count() > 0 for s in self._streams()):
+            return False
+        present = {f'{namespace.rstrip("/")}/{name}'
+                   for name, namespace in self.get_node_names_and_namespaces()}
+        for full_name in self._awaited_nodes:
+            if full_name not in present:
+                return False
+            namespace, _, name = full_name.rpartition('/')
+            try:
+                if not self.get_publisher_names_and_types_by_node(name, namespace or '/'):
+                    return False
+            except NodeNameNonExistentError:
+                return False
+        return True
+
     def _streams(self):
         """Return every state and ground-truth stream the bridge publishes."""
         streams = [self._clock_stream, self._mocap, self._object_truth]
@@ -385,7 +408,7 @@ class SimBridge(Node):
         if time.monotonic() - self._last_publish_wall < self._republish_period:
             return
         if not self._started:
-            if not all(s.publisher.get_subscription_count() > 0 for s in self._streams()):
+            if not self._graph_ready():
                 self._subscribed_wall = None
             elif self._subscribed_wall is None:
                 self._subscribed_wall = time.monotonic()
@@ -619,7 +642,7 @@ class _Stream:
     """A publisher of the contract and the message it reuses (filled in place, then sent)."""
 
     def __init__(self, node, topic, arm=None, frame_id=None, child_frame_id=None):
-        self.publisher = node.create_publisher(topic.msg_type, topic.resolved(arm), topic.qos)
+        self.publisher = create_topic_publisher(node, topic, arm)
         self.msg = topic.msg_type()
         if frame_id is not None:
             self.msg.header.frame_id = frame_id
@@ -656,37 +679,22 @@ def _format_value(value):
     return f'{value:.6g}' if isinstance(value, float) else str(value)
 
 
+def _write_log(node):
+    """Write the bridge's trajectory log on the way out; return the exit code."""
+    exit_logger = rclpy.logging.get_logger(f'{node.get_name()}.exit')
+    try:
+        path = node.write_trajectory_log()
+    except OSError as error:
+        exit_logger.error(f'cannot write the trajectory log: {error}')
+        return 1
+    if path:
+        exit_logger.info(f'trajectory log written to {path}')
+    return 0
+
+
 def main(args=None):
     """Run the bridge until the run's end (exit 0), Ctrl-C or SIGTERM."""
-    rclpy.init(args=args)
-    try:
-        node = SimBridge()
-    except (ConfigError, rclpy.exceptions.ParameterException) as error:
-        rclpy.logging.get_logger('sim_bridge').fatal(f'cannot start: {error}')
-        rclpy.try_shutdown()
-        return 2
-    executor = EventsExecutor()
-    executor.add_node(node)
-    status = 0
-    try:
-        while rclpy.ok() and not node.finished:
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        # After SIGINT/SIGTERM the context is shut down: log without the node's /rosout.
-        exit_logger = rclpy.logging.get_logger(f'{node.get_name()}.exit')
-        try:
-            path = node.write_trajectory_log()
-            if path:
-                exit_logger.info(f'trajectory log written to {path}')
-        except OSError as error:
-            exit_logger.error(f'cannot write the trajectory log: {error}')
-            status = 1
-        executor.remove_node(node)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return status
+    return run_node(SimBridge, 'sim_bridge', args, on_exit=_write_log)
 
 
 if __name__ == '__main__':

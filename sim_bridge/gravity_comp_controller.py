@@ -13,7 +13,7 @@ import sys
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError
 from dual_arm_control.description.cell import arm_model
-from dual_arm_control.nodes.common import run_node
+from dual_arm_control.nodes.common import create_topic_publisher, run_node
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
@@ -51,9 +51,7 @@ class GravityCompController(Node):
         self.joint_damping = self.get_parameter('joint_damping').value
         self._model = arm_model(self.arm)
         self._joint_names = contract.joint_names(self.arm)
-        self._command_pub = self.create_publisher(
-            contract.TORQUE_COMMAND.msg_type, contract.TORQUE_COMMAND.name,
-            contract.TORQUE_COMMAND.qos)
+        self._command_pub = create_topic_publisher(self, contract.TORQUE_COMMAND)
         self._state_sub = self.create_subscription(
             contract.JOINT_STATES.msg_type, contract.JOINT_STATES.name, self._on_joint_state,
             contract.JOINT_STATES.qos)

@@ -2,10 +2,12 @@
 bag_record: record topics of the graph, as published (serialized CDR), into an MCAP bag.
 
 By default every topic of the contract plus /parameter_events and /rosout; topics given on the
-command line or matching --regex instead. Topics that appear later are found by polling the
-graph every 0.5 s. Contract topics are subscribed with their contract QoS at once (types are
-known); the others with a QoS compatible with their publishers (reliable and transient-local
-only if every publisher offers it, keep-last 100). SIGINT/SIGTERM close the bag with its summary.
+command line or matching --regex instead. Contract topics are subscribed at once with their
+contract QoS (so the subscriptions exist before the graph starts: a bridge started with
+lockstep_wait_for_recorder waits for them); other topics as their publishers appear (the graph
+is polled every 0.5 s), with a QoS compatible with every publisher: reliable and transient
+local only if each publisher offers it. SIGINT/SIGTERM first take what was already delivered,
+then close the bag with its summary.
 """
 
 import argparse
@@ -24,7 +26,9 @@ from rclpy.utilities import remove_ros_args
 
 DISCOVERY_PERIOD = 0.5
 DEFAULT_EXTRA_TOPICS = ('/parameter_events', '/rosout')
-OTHER_TOPIC_DEPTH = 100
+# On stop: take delivered messages until none came for DRAIN_IDLE, at most DRAIN_LIMIT [s].
+DRAIN_IDLE = 0.5
+DRAIN_LIMIT = 10.0
 
 
 def contract_topics():
@@ -48,22 +52,22 @@ def message_class(type_name):
 
 
 # The recorder's own queue per topic: it may fall behind the lockstep graph by this many
-# messages of a topic without losing one (the publishers keep contract.HISTORY_DEPTH).
-RECORDER_DEPTH = 1000
+# messages of a topic without losing one (the publishers keep as many).
+RECORDER_DEPTH = contract.PUBLISHER_HISTORY_DEPTH
 
 
 def compatible_qos(publishers):
     """
-    Return a subscription QoS matching every publisher of a non-contract topic.
+    Return a subscription QoS matching every publisher of a topic.
 
-    Reliable only if all publishers are reliable, transient local only if all are (so late
-    joiners get the latched messages), keep-last OTHER_TOPIC_DEPTH.
+    Reliable only if all publishers are reliable, transient local only if all are (so the
+    recorder gets what they sent before it matched), keep-last RECORDER_DEPTH.
     """
     reliable = all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in publishers)
     latched = bool(publishers) and all(
         p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers)
     return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=OTHER_TOPIC_DEPTH,
+        history=HistoryPolicy.KEEP_LAST, depth=RECORDER_DEPTH,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
                     else DurabilityPolicy.VOLATILE))
@@ -97,7 +101,7 @@ class BagRecorder(Node):
         self._contract = contract_topics()
         for name, topic in self._contract.items():
             if self._selection.wants(name):
-                self._subscribe(name, topic.msg_type, topic.qos)
+                self._subscribe(name, topic.msg_type, [topic.publisher_qos], topic.qos)
         self._discover()
         self.create_timer(DISCOVERY_PERIOD, self._discover)
         self.get_logger().info(f'recording {len(self._recorded)} topics into '
@@ -108,9 +112,9 @@ class BagRecorder(Node):
         """Return {topic: messages recorded}."""
         return self._writer.counts
 
-    def _subscribe(self, name, msg_type, qos):
-        """Register the topic in the bag and subscribe to its serialized messages."""
-        self._writer.add_topic(name, msg_type, qos)
+    def _subscribe(self, name, msg_type, offered_qos, qos):
+        """Register the topic and its offered QoS in the bag; subscribe to serialized data."""
+        self._writer.add_topic(name, msg_type, offered_qos)
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=RECORDER_DEPTH,
                          reliability=qos.reliability, durability=qos.durability)
         self._recorded[name] = self.create_subscription(
@@ -133,11 +137,23 @@ class BagRecorder(Node):
             if not publishers:
                 continue
             try:
-                self._subscribe(name, message_class(types[0]), compatible_qos(publishers))
+                self._subscribe(name, message_class(types[0]),
+                                [p.qos_profile for p in publishers], compatible_qos(publishers))
             except BagError as error:
                 self.get_logger().warning(f'not recording {name}: {error}')
                 continue
             self.get_logger().info(f'recording {name} ({types[0]})')
+
+    def drain(self, executor):
+        """Take the messages already delivered until none came for DRAIN_IDLE (on stop)."""
+        deadline = time.monotonic() + DRAIN_LIMIT
+        total = sum(self.counts.values())
+        idle_since = time.monotonic()
+        while time.monotonic() < deadline and time.monotonic() - idle_since < DRAIN_IDLE:
+            executor.spin_once(timeout_sec=0.05)
+            if sum(self.counts.values()) != total:
+                total = sum(self.counts.values())
+                idle_since = time.monotonic()
 
     def destroy_node(self):
         """Close the bag (summary written), print the counts (rosout may be gone), destroy."""
@@ -176,7 +192,7 @@ def main(argv=None):
     """Run the recorder until SIGINT/SIGTERM; return the process exit code."""
     argv = sys.argv if argv is None else argv
     options = parse_arguments(remove_ros_args(argv)[1:])
-    return run_node(lambda: BagRecorder(options), 'bag_record', args=argv)
+    return run_node(lambda: BagRecorder(options), 'bag_record', args=argv, drain=True)
 
 
 if __name__ == '__main__':

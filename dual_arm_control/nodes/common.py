@@ -7,7 +7,9 @@ Times travel as integer nanoseconds inside the nodes so that schedules computed 
 processes agree exactly.
 """
 
+import json
 import math
+import signal
 import time
 
 from builtin_interfaces.msg import Time
@@ -19,12 +21,19 @@ from dual_arm_control.pipeline import NANOSECONDS_PER_SECOND, seconds_to_ns, Tic
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.publisher import Publisher
+from rclpy.signals import SignalHandlerOptions
 
 LOG_THROTTLE_PERIOD = 1.0
 DEFAULT_DIAGNOSTICS_PERIOD = 1.0
 DIAGNOSTICS_PERIOD_RANGE = (0.01, 100.0)
+# Wall time a stopping node waits for its subscribers to acknowledge its last messages [s].
+FLUSH_TIMEOUT = 2.0
+# The line a stopping node prints with {topic: messages published} (read by the bag tests).
+PUBLISHED_COUNTS_PREFIX = 'published counts: '
 
 
 def time_msg(stamp_ns):
@@ -143,15 +152,80 @@ class RefusalCounter:
         return sum(self.counts.values())
 
 
-def run_node(node_factory, name, args=None):
+class CountingPublisher(Publisher):
+    """A publisher that counts its messages, so a recording can be checked against it."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.published = 0
+
+    def publish(self, msg):
+        """Publish msg and count it."""
+        super().publish(msg)
+        self.published += 1
+
+
+def create_topic_publisher(node, topic, arm=None):
+    """
+    Return a counting publisher of a contract topic with the contract's publisher QoS.
+
+    arm resolves a per-arm topic to /<arm>/...; without it a per-arm topic stays relative to
+    the node's namespace.
+    """
+    name = topic.name if arm is None else topic.resolved(arm)
+    return node.create_publisher(topic.msg_type, name, topic.publisher_qos,
+                                 publisher_class=CountingPublisher)
+
+
+def published_counts(node):
+    """Return {topic: messages published} over the node's counting publishers."""
+    counts = {}
+    for publisher in node.publishers:
+        if isinstance(publisher, CountingPublisher):
+            counts[publisher.topic_name] = counts.get(publisher.topic_name, 0) + \
+                publisher.published
+    return counts
+
+
+def flush_publishers(node, timeout=FLUSH_TIMEOUT):
+    """Wait until every reliable subscriber acknowledged the node's messages; return success."""
+    deadline = time.monotonic() + timeout
+    acknowledged = True
+    for publisher in node.publishers:
+        remaining = max(deadline - time.monotonic(), 0.0)
+        try:
+            acknowledged &= publisher.wait_for_all_acked(Duration(seconds=remaining))
+        except Exception:  # noqa: B902 (a publisher of a context already shut down)
+            acknowledged = False
+    return acknowledged
+
+
+class _StopRequest:
+    """SIGINT/SIGTERM set a flag, so a stopping node can still flush (rclpy stays up)."""
+
+    def __init__(self):
+        self.requested = False
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, self._request)
+
+    def _request(self, signum, frame):
+        self.requested = True
+
+
+def run_node(node_factory, name, args=None, drain=False, on_exit=None):
     """
     Run one node until Ctrl-C or SIGTERM, the Jazzy way; return the process exit code.
 
     The node is built before the spin loop so a constructor error (bad parameters, bad files)
-    is reported once and exits 2. EventsExecutor.spin() ignores signals, so the loop spins once
-    at a time and checks rclpy.ok().
+    is reported once and exits 2. EventsExecutor.spin() ignores signals, so signals only set a
+    flag and the loop spins once at a time. On the way out, with drain, node.drain(executor)
+    still spins (a recorder takes the messages already delivered to it); then the node waits
+    (FLUSH_TIMEOUT) until its subscribers acknowledged its last messages, prints its published
+    counts and is destroyed. on_exit(node), if given, runs before that and returns the exit
+    code (0 otherwise).
     """
-    rclpy.init(args=args)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = _StopRequest()
     try:
         node = node_factory()
     except (DualArmControlError, rclpy.exceptions.ParameterException) as error:
@@ -160,16 +234,25 @@ def run_node(node_factory, name, args=None):
         return 2
     executor = EventsExecutor()
     executor.add_node(node)
+    status = 0
     try:
-        while rclpy.ok() and not getattr(node, 'finished', False):
+        while rclpy.ok() and not stop.requested and not getattr(node, 'finished', False):
             executor.spin_once(timeout_sec=0.1)
+        if drain:
+            node.drain(executor)
+        flush_publishers(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if on_exit is not None:
+            status = on_exit(node)
+        counts = published_counts(node)
+        if counts:
+            print(PUBLISHED_COUNTS_PREFIX + json.dumps(counts, sort_keys=True), flush=True)
         executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return status
 
 
 class CounterDiagnostics:
@@ -190,8 +273,7 @@ class CounterDiagnostics:
                                                'this node [s]',
                                    floating_point_range=[FloatingPointRange(
                                        from_value=low, to_value=high, step=0.0)]))
-        self._publisher = node.create_publisher(
-            contract.DIAGNOSTICS.msg_type, contract.DIAGNOSTICS.name, contract.DIAGNOSTICS.qos)
+        self._publisher = create_topic_publisher(node, contract.DIAGNOSTICS)
         self._last_ns = None
         self.name = node.get_fully_qualified_name().lstrip('/')
 

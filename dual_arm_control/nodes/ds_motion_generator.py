@@ -15,7 +15,8 @@ from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
                                                     MotionGeneratorConfig, ObjectMeasurement)
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.nodes.common import (CounterDiagnostics, fill_odometry,
+from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
+                                           fill_odometry,
                                            joint_state_arrays, odometry_arrays, RefusalCounter,
                                            run_node, seconds_to_ns, set_vector3, stamp_ns,
                                            TickSchedule, time_msg, wrench_array)
@@ -97,7 +98,7 @@ class DsMotionGenerator(Node):
             f'{len(self._config_parameters.names)} tunable parameters')
 
     def _publisher(self, topic, arm=None):
-        return self.create_publisher(topic.msg_type, topic.resolved(arm), topic.qos)
+        return create_topic_publisher(self, topic, arm)
 
     def _on_config(self, config):
         self._pending_config = config

@@ -23,7 +23,8 @@ import sys
 from diagnostic_msgs.msg import DiagnosticStatus
 from dual_arm_control import contract
 from dual_arm_control.core.tracker import MeasurementOutcome, ObjectTracker, TrackerConfig
-from dual_arm_control.nodes.common import (CounterDiagnostics, NANOSECONDS_PER_SECOND, quaternion,
+from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
+                                           NANOSECONDS_PER_SECOND, quaternion,
                                            RefusalCounter, run_node, seconds_to_ns, set_quaternion,
                                            set_vector3, stamp_ns, time_msg, vector3)
 from dual_arm_control.parameters import ConfigParameters
@@ -65,8 +66,7 @@ class ObjectTrackerNode(Node):
         self._state_msg = contract.OBJECT_STATE.msg_type()
         self._state_msg.header.frame_id = contract.WORLD_FRAME
         self._state_msg.child_frame_id = 'object'
-        self._state_pub = self.create_publisher(
-            contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name, contract.OBJECT_STATE.qos)
+        self._state_pub = create_topic_publisher(self, contract.OBJECT_STATE)
         self._mocap_sub = self.create_subscription(
             contract.MOCAP_OBJECT_POSE.msg_type, contract.MOCAP_OBJECT_POSE.name, self._on_mocap,
             contract.MOCAP_OBJECT_POSE.qos)

@@ -30,8 +30,9 @@ from dual_arm_control.core.passive_control import (hold_torque, PassiveControlle
                                                    PassiveControllerConfig)
 from dual_arm_control.core.validation import check_range
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.nodes.common import (CounterDiagnostics, joint_state_arrays, odometry_arrays,
-                                           RefusalCounter, run_node, seconds_to_ns, stamp_ns,
+from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
+                                           joint_state_arrays, odometry_arrays, RefusalCounter,
+                                           run_node, seconds_to_ns, stamp_ns,
                                            TickSchedule, time_msg, wrench_array)
 from dual_arm_control.parameters import ConfigParameters
 import numpy as np
@@ -117,9 +118,7 @@ class PassiveControllerNode(Node):
         self._last_cycle_ns = None
         self._answer_msg = None
 
-        self._torque_pub = self.create_publisher(
-            contract.TORQUE_COMMAND.msg_type, contract.TORQUE_COMMAND.name,
-            contract.TORQUE_COMMAND.qos)
+        self._torque_pub = create_topic_publisher(self, contract.TORQUE_COMMAND)
         self._ds_command_sub, self._contact_wrench_sub, self._joint_state_sub = (
             self.create_subscription(topic.msg_type, topic.name, callback, topic.qos)
             for topic, callback in ((contract.DS_COMMAND, self._on_ds_command),

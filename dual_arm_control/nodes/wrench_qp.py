@@ -24,7 +24,8 @@ from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.validation import check_range
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.nodes.common import (CounterDiagnostics, joint_state_arrays,
+from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
+                                           joint_state_arrays,
                                            odometry_arrays, RefusalCounter,
                                            run_node, set_wrench, stamp_ns, TickSchedule, time_msg,
                                            vector3)
@@ -97,9 +98,7 @@ class WrenchQPNode(Node):
 
         self._wrench_pubs, self._wrench_msgs = {}, {}
         for arm in contract.ARMS:
-            self._wrench_pubs[arm] = self.create_publisher(
-                contract.CONTACT_WRENCH.msg_type, contract.CONTACT_WRENCH.resolved(arm),
-                contract.CONTACT_WRENCH.qos)
+            self._wrench_pubs[arm] = create_topic_publisher(self, contract.CONTACT_WRENCH, arm)
             self._wrench_msgs[arm] = contract.CONTACT_WRENCH.msg_type()
             self._wrench_msgs[arm].header.frame_id = contract.WORLD_FRAME
         self._input_subs = [
