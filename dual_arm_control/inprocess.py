@@ -7,7 +7,9 @@ flow. For tuning, benchmarks and fast tests; the product runs the nodes
 (`dual_arm_bringup`). Deterministic for a given scenario and seed.
 """
 
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+import time
 
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix
@@ -45,8 +47,37 @@ class EpisodeLog:
     phases: list = field(default_factory=list)
 
 
-def run_episode(scenario, config=None, cell=None, duration=None):
-    """Run one episode of scenario and return its EpisodeLog."""
+class StageTimer:
+    """Wall time of each stage of the loop, one sample per call: {stage: [seconds]}."""
+
+    def __init__(self):
+        self.samples = {}
+
+    @contextmanager
+    def stage(self, name):
+        """Time the block as one sample of stage name."""
+        started = time.perf_counter()
+        yield
+        self.samples.setdefault(name, []).append(time.perf_counter() - started)
+
+
+class _NoTimer:
+    """The default: stages are not timed."""
+
+    @contextmanager
+    def stage(self, name):
+        yield
+
+
+def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
+    """
+    Run one episode of scenario and return its EpisodeLog.
+
+    timer (a StageTimer) collects the wall time of each node's work per call: 'tracker' (the
+    cycle's samples and the estimate), 'ds' (measurements and the motion generator step), 'qp'
+    (the wrench distribution), 'controller' (one arm's torque) and 'bridge_step' (the twin).
+    """
+    timer = _NoTimer() if timer is None else timer
     config = RunnerConfig() if config is None else config
     cell = load_cell() if cell is None else cell
     twin = DualArmTwin(scenario, cell, fri_period=config.fri_period)
@@ -67,37 +98,54 @@ def run_episode(scenario, config=None, cell=None, duration=None):
     started = False
     while twin.time < duration - 1e-9:
         t = twin.time
-        for sample in twin.mocap_samples():
-            tracker.update(sample.stamp, sample.p_world, sample.quat_xyzw)
         joints = {arm: twin.joint_state(arm) for arm in ARMS}
         t_ns = seconds_to_ns(t)
-        if schedule.due(t_ns):
+        due = schedule.due(t_ns)
+        with timer.stage('tracker'):
+            for sample in twin.mocap_samples():
+                tracker.update(sample.stamp, sample.p_world, sample.quat_xyzw)
+            estimate = tracker.state(t) if due else None
+        if due:
             dt = schedule.take(t_ns)
-            estimate = tracker.state(t)
             if estimate is not None:
                 start = not started and t >= config.start_time - 1e-9
                 started = started or start
                 output, wrenches = _ds_tick(generator, distributor, models, joints, twin,
-                                            estimate, dt, start)
+                                            estimate, dt, start, timer)
                 log.phases.append((t, output.phase.phase.value))
         for arm in ARMS:
             if output is None:
                 torques[arm] = twin.hold_torques(arm)
                 continue
             command = output.commands[arm]
-            result = controllers[arm].torque_command(
-                joints[arm].position, joints[arm].velocity, command.v_world, command.w_world,
-                command.R_world_desired, wrenches[arm])
+            with timer.stage('controller'):
+                result = controllers[arm].torque_command(
+                    joints[arm].position, joints[arm].velocity, command.v_world,
+                    command.w_world, command.R_world_desired, wrenches[arm])
             torques[arm] = result.torque
-        report = twin.step(torques)
+        with timer.stage('bridge_step'):
+            report = twin.step(torques)
         recorder.counters['torque_clamp_count'] += sum(report.clamped.values())
         recorder.append(twin, torques)
     log.trajectory = recorder.arrays()
     return log
 
 
-def _ds_tick(generator, distributor, models, joints, twin, estimate, dt, start):
+def _ds_tick(generator, distributor, models, joints, twin, estimate, dt, start, timer):
     """Run the DS and the wrench QP for one 200 Hz tick; return (MotionOutput, wrenches)."""
+    with timer.stage('ds'):
+        output, p_tools, R_tools, R_object = _motion_step(generator, models, joints, twin,
+                                                          estimate, dt, start)
+    with timer.stage('qp'):
+        distributed = distributor.step(
+            output.phase.phase, p_tools, R_tools, estimate.position, R_object,
+            estimate.linear_velocity, estimate.angular_velocity, output.object_velocity,
+            output.object_angular_velocity, dt)
+    return output, distributed.wrenches
+
+
+def _motion_step(generator, models, joints, twin, estimate, dt, start):
+    """Build the DS node's measurements and step it; return (output, tool poses, R_object)."""
     arms = {}
     p_tools, R_tools = {}, {}
     for arm in ARMS:
@@ -110,8 +158,4 @@ def _ds_tick(generator, distributor, models, joints, twin, estimate, dt, start):
     R_object = quat_xyzw_to_matrix(estimate.quat_xyzw)
     obj = ObjectMeasurement(estimate.position, R_object, estimate.linear_velocity)
     output = generator.step(arms, obj, dt, start_episode=start)
-    distributed = distributor.step(
-        output.phase.phase, p_tools, R_tools, estimate.position, R_object,
-        estimate.linear_velocity, estimate.angular_velocity, output.object_velocity,
-        output.object_angular_velocity, dt)
-    return output, distributed.wrenches
+    return output, p_tools, R_tools, R_object
