@@ -157,18 +157,19 @@ class Launcher:
         return [process.pid for process in self._processes.values()]
 
 
-def start_recorder(out_dir, env):
+def start_recorder(out_dir, env, scenario=None):
     """
     Start bag_record into OUT/bag.mcap and wait until its subscriptions exist (--record).
 
-    Returns the process; the graph starts afterwards so that its first messages are recorded
-    as far as DDS discovery allows.
+    Returns the process; the graph starts afterwards. The scenario file, if any, is stored in
+    the bag's metadata.
     """
     log_path = Path(out_dir) / 'logs' / 'bag_record.log'
     log_path.parent.mkdir(parents=True, exist_ok=True)
     with open(log_path, 'w') as log_file:
         process = subprocess.Popen(
-            executable_command('bag_record') + ['-o', str(Path(out_dir) / 'bag.mcap')],
+            executable_command('bag_record') + ['-o', str(Path(out_dir) / 'bag.mcap')]
+            + ([] if scenario is None else ['--metadata', f'scenario={scenario}']),
             stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
             preexec_fn=_die_with_parent)
     deadline = time.monotonic() + RECORDER_STARTUP_TIMEOUT
@@ -233,7 +234,9 @@ def main(argv=None):
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
     print(f'dual_arm_bringup: ROS_DOMAIN_ID={domain_id}, logs in {args.out / "logs"}')
-    recorder = start_recorder(args.out, launcher.environment()) if args.record else None
+    recorder = (start_recorder(args.out, launcher.environment(),
+                               args.scenario and args.scenario.resolve())
+                if args.record else None)
     if recorder is not None and recorder.poll() is not None:
         print(f'dual_arm_bringup: bag_record exited ({recorder.returncode}), see '
               f'{args.out / "logs" / "bag_record.log"}', file=sys.stderr)

@@ -20,7 +20,8 @@ from dual_arm_control import contract
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.info import inspect_bag, main as bag_info_main
 from dual_arm_control.bags.schema import first_field_type, message_definition, type_name
-from dual_arm_control.bags.writer import BagWriter, header_stamp_ns, split_path
+from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, METADATA_NAME,
+                                          split_path)
 from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import full_graph, RECORDER_NODE
 from dual_arm_control.nodes.common import PUBLISHED_COUNTS_PREFIX
@@ -474,3 +475,7 @@ def test_bringup_record_flag_writes_a_complete_bag(tmp_path):
     assert sorted(set(phase_stamps)) == ticks
     assert {stamp for stamp in phase_stamps if phase_stamps.count(stamp) > 1} <= {0}
     assert 'closed' in (out / 'logs' / 'bag_record.log').read_text()
+    with open(out / 'bag.mcap', 'rb') as stream:
+        metadata = {record.name: record.metadata
+                    for record in make_reader(stream).iter_metadata()}
+    assert metadata == {METADATA_NAME: {'scenario': str(SCENARIO.resolve())}}

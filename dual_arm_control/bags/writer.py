@@ -19,6 +19,8 @@ PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
 MESSAGE_ENCODING = 'cdr'
 DEFAULT_CHUNK_SIZE = 1024 * 1024
+# Name of the MCAP metadata record with the run's facts (e.g. 'scenario': path).
+METADATA_NAME = 'dual_arm_control'
 COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}
 _CDR_LITTLE_ENDIAN_IDS = (0x01, 0x03)
@@ -116,10 +118,12 @@ class BagWriter:
     log_time is the receive time [ns] (kept non-decreasing per file), publish_time the
     message's header stamp when its type starts with std_msgs/Header, else the log time.
     split_size [bytes] or split_duration [s] start a new file <stem>_<N>.mcap once exceeded.
+    metadata {key: text} goes into every file as the MCAP metadata record METADATA_NAME (e.g.
+    the run's scenario file, so tools that read the bag can rebuild the scene).
     """
 
     def __init__(self, path, compression='zstd', chunk_size=DEFAULT_CHUNK_SIZE, split_size=None,
-                 split_duration=None):
+                 split_duration=None, metadata=None):
         if compression not in available_compressions():
             raise BagError(f'compression {compression!r} is not available; choose one of '
                            f'{available_compressions()}')
@@ -134,6 +138,7 @@ class BagWriter:
         self._split_size = split_size
         self._split_duration_ns = (int(split_duration * 1e9) if split_duration is not None
                                    else None)
+        self.metadata = {str(key): str(value) for key, value in (metadata or {}).items()}
         self._topics = {}
         self.paths = []
         self._file = None
@@ -216,6 +221,8 @@ class BagWriter:
         self._writer = Writer(self._file, chunk_size=self._chunk_size,
                               compression=COMPRESSIONS[self.compression])
         self._writer.start(profile=PROFILE, library='dual_arm_control')
+        if self.metadata:
+            self._writer.add_metadata(METADATA_NAME, self.metadata)
         self._schemas = {}
         self._channels = {}
         self._sequences = {}

@@ -96,7 +96,8 @@ class BagRecorder(Node):
         self._writer = BagWriter(options.output, compression=options.compression,
                                  chunk_size=options.chunk_size,
                                  split_size=options.max_bag_size,
-                                 split_duration=options.max_bag_duration)
+                                 split_duration=options.max_bag_duration,
+                                 metadata=dict(options.metadata))
         self._recorded = {}
         self._contract = contract_topics()
         for name, topic in self._contract.items():
@@ -165,6 +166,14 @@ class BagRecorder(Node):
         return super().destroy_node()
 
 
+def _metadata_entry(text):
+    """Parse a --metadata KEY=VALUE argument into (key, value)."""
+    key, separator, value = text.partition('=')
+    if not separator or not key:
+        raise argparse.ArgumentTypeError(f'expected KEY=VALUE, got {text!r}')
+    return key, value
+
+
 def parse_arguments(argv):
     """Parse the recorder's command line (ROS arguments removed)."""
     parser = argparse.ArgumentParser(prog='bag_record', description=__doc__.split('\n')[1])
@@ -179,6 +188,9 @@ def parse_arguments(argv):
                         help='start a new file <stem>_<N>.mcap beyond this size [bytes]')
     parser.add_argument('--max-bag-duration', type=float,
                         help='start a new file beyond this recording time [s]')
+    parser.add_argument('--metadata', action='append', default=[], type=_metadata_entry,
+                        metavar='KEY=VALUE', help='a fact of the run stored in the bag '
+                        "(MCAP metadata 'dual_arm_control'), e.g. scenario=PATH; repeatable")
     options = parser.parse_args(argv)
     if options.regex is not None:
         try:

@@ -8,8 +8,9 @@ else the tracker's estimate), interpolated linearly at the frame's sim time; --s
 the episode at half speed. Optional text overlays: sim time, phase, tool and object speeds.
 
 Rendering needs no display or GPU: MUJOCO_GL=egl by default (Mesa llvmpipe works), OSMesa as
-fallback. The scenario is read from the bag (the bridge's 'scenario' parameter or start-up log)
-unless --scenario is given. Exit codes: 0 written, 1 no offscreen OpenGL, 2 user error,
+fallback. The scenario is read from the bag (its 'dual_arm_control' metadata, written by
+`dual_arm_bringup --record`, else a recorded 'scenario' parameter event) unless --scenario is
+given. Exit codes: 0 written, 1 no offscreen OpenGL, 2 user error,
 130 interrupted (no partial file is left).
 """
 
@@ -18,13 +19,12 @@ from dataclasses import dataclass, field
 import math
 import os
 from pathlib import Path
-import re
 import subprocess
 import sys
 import time
 
 from dual_arm_control import contract
-from dual_arm_control.bags.writer import split_path
+from dual_arm_control.bags.writer import METADATA_NAME, split_path
 from dual_arm_control.core.exceptions import DualArmControlError, InputError
 from dual_arm_control.nodes.bag_record import message_class
 from dual_arm_control.scenario import load_scenario
@@ -40,10 +40,7 @@ GL_BACKENDS = ('egl', 'osmesa', 'glfw')
 FORMATS = {'.mp4': 'mp4', '.gif': 'gif'}
 OVERLAY_ITEMS = ('time', 'phase', 'speeds')
 PARAMETER_EVENTS_TOPIC = '/parameter_events'
-ROSOUT_TOPIC = '/rosout'
 SCENARIO_PARAMETER = 'scenario'
-# The bridge's start-up log line names the scenario file: '... scenario <path>, seed ...'.
-_SCENARIO_LOG = re.compile(r'\bscenario (\S+?),')
 MAX_SCENE_GEOMS = 2000
 # Frames sampled to build the GIF's shared palette (one palette keeps static pixels identical
 # from frame to frame, so each GIF frame stores only the region that changed).
@@ -205,6 +202,19 @@ def _bag_files(path):
     return files
 
 
+def _recorded_scenario(files):
+    """Return the scenario named in the bag's METADATA_NAME metadata record, or None."""
+    for path in files:
+        try:
+            with open(path, 'rb') as stream:
+                for record in make_reader(stream).iter_metadata():
+                    if record.name == METADATA_NAME and record.metadata.get('scenario'):
+                        return record.metadata['scenario']
+        except (McapError, OSError, ValueError, EOFError):
+            return None
+    return None
+
+
 def _messages(files, topics):
     """Yield (topic, message, log_time_ns) of the given topics, in log-time order per file."""
     classes = {}
@@ -243,11 +253,11 @@ def read_episode(path):
     joint_topics = {contract.JOINT_STATES.resolved(arm): arm for arm in contract.ARMS}
     object_topics = (contract.GROUND_TRUTH_OBJECT.name, contract.OBJECT_STATE.name)
     topics = (list(joint_topics) + list(object_topics)
-              + [contract.PHASE.name, PARAMETER_EVENTS_TOPIC, ROSOUT_TOPIC])
+              + [contract.PHASE.name, PARAMETER_EVENTS_TOPIC])
     joints = {arm: [] for arm in contract.ARMS}
     objects = {topic: [] for topic in object_topics}
     phases = []
-    scenario_parameter = scenario_log = None
+    scenario_parameter = None
     for topic, msg, log_time in _messages(files, topics):
         if topic in joint_topics:
             arm = joint_topics[topic]
@@ -267,9 +277,6 @@ def read_episode(path):
                     phases.append((_stamp(msg), log_time, status.message))
         elif topic == PARAMETER_EVENTS_TOPIC:
             scenario_parameter = _scenario_from_parameter_event(msg) or scenario_parameter
-        elif topic == ROSOUT_TOPIC and scenario_log is None and msg.name.endswith('sim_bridge'):
-            match = _SCENARIO_LOG.search(msg.msg)
-            scenario_log = match.group(1) if match else None
     for arm, samples in joints.items():
         if not samples:
             raise InputError(f'bag {path} has no {contract.JOINT_STATES.resolved(arm)} '
@@ -290,7 +297,7 @@ def read_episode(path):
         joint_velocity[arm] = velocity
     record = {'joint_time': joint_time, 'joint_position': joint_position,
               'joint_velocity': joint_velocity,
-              'scenario': scenario_parameter or scenario_log}
+              'scenario': _recorded_scenario(files) or scenario_parameter}
     source = next((topic for topic in object_topics if objects[topic]), None)
     if source is not None:
         samples = objects[source]
