@@ -4,11 +4,13 @@ Scenario files (config/scenarios/*.yaml) as frozen dataclasses.
 A scenario fixes everything a run needs besides the controllers' parameters: task, object (type
 from the catalogue or explicit size/mass/friction, pose), release or landing target, placing
 position, task speeds, scripted perturbations, duration, initial joint configuration and sensor
-models of the twin. Positions given as [x, y] rest on the surface below (pallet, front table or
-floor of config/cell.yaml). Every error names the file and the dotted key.
+models of the twin, and optionally the ranges a batch evaluation draws its trials from
+(sample_trial). Positions given as [x, y] rest on the surface below (pallet, front table or
+floor of config/cell.yaml). Every error names the file and the dotted key. scenario_document
+writes a Scenario back as such a file.
 """
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 import math
 from pathlib import Path
 
@@ -24,6 +26,11 @@ import numpy as np
 TASKS = ('pick_and_toss', 'pick_and_place', 'pick_and_lift', 'place_toss', 'toss_to_target')
 TOSS_TASKS = ('pick_and_toss', 'toss_to_target')
 PLACE_TASKS = ('pick_and_place', 'place_toss')
+# Randomization keys given as [low, high] ranges, with their units.
+RANDOMIZED_RANGES = {'mass': 'kg', 'size_scale': '', 'friction': '', 'mocap_noise': 'm'}
+# The uniform draws of one trial, in the order they are taken from its generator.
+_TRIAL_DRAWS = ('object_x', 'object_y', 'object_yaw', 'mass', 'size_scale', 'friction',
+                'mocap_noise')
 
 
 def _frozen_vector(name, value, size, unit):
@@ -161,6 +168,49 @@ class SensorConfig:
 
 
 @dataclass(frozen=True)
+class Randomization:
+    """
+    Per-trial randomization of a scenario (dual_arm_eval): uniform draws around its values.
+
+    Fields: object_position (2,) half-ranges [m] of the offset of the object's initial centre
+    along world x and y (uniform in +-, the gap to the surface below is kept); object_yaw:
+    half-range [rad] of the offset of the initial yaw; mass (low, high) [kg], size_scale
+    (low, high) [-] (factor on all three edges), friction (low, high) [-] and mocap_noise
+    (low, high) [m] (mocap position noise standard deviation): ranges drawn uniformly, None
+    keeps the scenario's value. The controllers are given the drawn values (the scenario is
+    their prior as well as the twin's truth).
+    """
+
+    object_position: np.ndarray = (0.0, 0.0)
+    object_yaw: float = 0.0
+    mass: object = None
+    size_scale: object = None
+    friction: object = None
+    mocap_noise: object = None
+
+    def __post_init__(self):
+        position = _frozen_vector('randomization.object_position', self.object_position, 2, 'm')
+        for half_range in position:
+            check_range('randomization.object_position', half_range, 0.0, 0.5, 'm')
+        object.__setattr__(self, 'object_position', position)
+        check_range('randomization.object_yaw', self.object_yaw, 0.0, math.pi, 'rad')
+        bounds = {'mass': (0.0, 100.0, 'kg'), 'size_scale': (0.0, 10.0, ''),
+                  'friction': (0.0, 10.0, ''), 'mocap_noise': (0.0, 0.1, 'm')}
+        for name, (low, high, unit) in bounds.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            interval = _frozen_vector(f'randomization.{name}', value, 2, unit)
+            for bound in interval:
+                check_range(f'randomization.{name}', bound, low, high, unit,
+                            low_open=name != 'mocap_noise')
+            if interval[0] > interval[1]:
+                raise ConfigError(f'randomization.{name} must be [low, high] with low <= high, '
+                                  f'got {interval.tolist()}')
+            object.__setattr__(self, name, interval)
+
+
+@dataclass(frozen=True)
 class Scenario:
     """
     One run of the cell.
@@ -169,7 +219,8 @@ class Scenario:
     (ReleaseConfig or None); landing_target (3,) object centre at landing [m] or None; place:
     object centre at placing (3,) [m] or None; speeds (Speeds); perturbations (tuple of
     Perturbation, sorted by time); duration [s]; initial_configuration {arm: (7,) [rad]};
-    sensors (SensorConfig); path (source file or None).
+    sensors (SensorConfig); randomization (Randomization or None: a template for dual_arm_eval,
+    see sample_trial; a single run ignores it); path (source file or None).
     """
 
     name: str
@@ -184,6 +235,7 @@ class Scenario:
     place: object = None
     perturbations: tuple = ()
     sensors: SensorConfig = field(default_factory=SensorConfig)
+    randomization: object = None
     path: object = None
 
     def __post_init__(self):
@@ -202,6 +254,10 @@ class Scenario:
             raise ConfigError(f'task {self.task} needs place')
         if set(self.initial_configuration) != set(ARMS):
             raise ConfigError(f'initial_configuration needs the arms {ARMS}')
+        if self.randomization is not None and not isinstance(self.randomization,
+                                                             Randomization):
+            raise ConfigError(f'randomization must be a Randomization or None, got '
+                              f'{self.randomization!r}')
 
 
 def scenario_path(name_or_path):
@@ -354,6 +410,23 @@ def _sensor_config(reader, data):
     return SensorConfig(mocap, reader.build('sensors.ft', FtConfig, **ft_values))
 
 
+def _randomization(reader, data):
+    entry = reader.mapping(data, 'randomization', optional=True)
+    if entry is None:
+        return None
+    reader.check_keys(entry, [item.name for item in fields(Randomization)], 'randomization')
+    values = {}
+    if 'object_position' in entry:
+        values['object_position'] = reader.vector(entry, 'object_position', (2,),
+                                                  'randomization', 'm')
+    if 'object_yaw' in entry:
+        values['object_yaw'] = reader.number(entry, 'object_yaw', 'randomization')
+    for key, unit in RANDOMIZED_RANGES.items():
+        if key in entry:
+            values[key] = reader.vector(entry, key, (2,), 'randomization', unit)
+    return reader.build('randomization', Randomization, **values)
+
+
 def load_scenario(path, cell=None, catalogue_path=None):
     """
     Load a scenario file (path or name under config/scenarios) into a Scenario.
@@ -367,7 +440,7 @@ def load_scenario(path, cell=None, catalogue_path=None):
     data = load_yaml(path)
     reader.check_keys(data, ('name', 'seed', 'task', 'object', 'release', 'landing_target',
                              'place', 'speeds', 'perturbations', 'duration',
-                             'initial_configuration', 'sensors'), '')
+                             'initial_configuration', 'sensors', 'randomization'), '')
     name = require(data, 'name', path, str)
     seed = require(data, 'seed', path, int)
     if isinstance(seed, bool) or seed < 0:
@@ -428,4 +501,109 @@ def load_scenario(path, cell=None, catalogue_path=None):
         duration=duration, initial_configuration=_initial_configuration(reader, data, cell),
         release=release, landing_target=landing_target, place=place,
         perturbations=tuple(sorted(perturbations, key=lambda item: item.time)),
-        sensors=_sensor_config(reader, data), path=path)
+        sensors=_sensor_config(reader, data), randomization=_randomization(reader, data),
+        path=path)
+
+
+def sample_trial(scenario, trial_index, cell=None):
+    """
+    Return trial number trial_index of scenario: a concrete Scenario, its randomization drawn.
+
+    Deterministic in (scenario.seed, trial_index): a generator seeded with
+    SeedSequence([seed, trial_index]) draws one uniform number per randomizable quantity in a
+    fixed order (adding a range to a file leaves the other quantities' draws unchanged), then
+    the trial's own seed, so every trial has different but reproducible sensor noise. The
+    object keeps its gap to the surface below it; resting targets (landing_target, place)
+    follow a scaled height. The trial has no randomization and no path.
+    """
+    if isinstance(trial_index, bool) or not isinstance(trial_index, int) or trial_index < 0:
+        raise ConfigError(f'trial_index must be an integer >= 0, got {trial_index!r}')
+    cell = cell or load_cell()
+    generator = np.random.default_rng(np.random.SeedSequence([scenario.seed, trial_index]))
+    draw = dict(zip(_TRIAL_DRAWS, generator.random(len(_TRIAL_DRAWS))))
+    trial_seed = int(generator.integers(0, 2 ** 31))
+    spec = scenario.randomization or Randomization()
+
+    def from_range(name, default):
+        interval = getattr(spec, name)
+        if interval is None:
+            return default
+        return float(interval[0] + (interval[1] - interval[0]) * draw[name])
+
+    def offset(name, half_range):
+        return float(half_range * (2.0 * draw[name] - 1.0))
+
+    box = scenario.object
+    size = box.size * from_range('size_scale', 1.0)
+    lift = 0.5 * (size[2] - box.size[2])
+    x, y, z = box.position
+    new_x = x + offset('object_x', spec.object_position[0])
+    new_y = y + offset('object_y', spec.object_position[1])
+    new_z = z + (cell.surface_height(new_x, new_y) - cell.surface_height(x, y)) + lift
+    yaw = math.remainder(box.yaw + offset('object_yaw', spec.object_yaw), 2.0 * math.pi)
+    trial_object = ObjectConfig(box.type, size, from_range('mass', box.mass),
+                                from_range('friction', box.friction), [new_x, new_y, new_z],
+                                yaw)
+    mocap = replace(scenario.sensors.mocap, position_noise=from_range(
+        'mocap_noise', scenario.sensors.mocap.position_noise))
+
+    def raised(position):
+        if position is None:
+            return None
+        moved = np.array(position, dtype=float) + [0.0, 0.0, lift]
+        moved.setflags(write=False)
+        return moved
+
+    return replace(scenario, seed=trial_seed, object=trial_object,
+                   landing_target=raised(scenario.landing_target), place=raised(scenario.place),
+                   sensors=replace(scenario.sensors, mocap=mocap), randomization=None,
+                   path=None)
+
+
+def scenario_document(scenario):
+    """
+    Return scenario as the mapping load_scenario reads (write it with yaml.safe_dump).
+
+    Every value is explicit (object size, mass and friction beside its type, 3D positions,
+    both arms' initial configuration, every sensor field), so loading the document gives back
+    an equal Scenario whatever the catalogue's and the loader's defaults.
+    """
+    def numbers(values):
+        return [float(value) for value in values]
+
+    box = scenario.object
+    object_entry = {} if box.type is None else {'type': box.type}
+    object_entry.update(size=numbers(box.size), mass=float(box.mass),
+                        friction=float(box.friction), position=numbers(box.position),
+                        yaw=float(box.yaw))
+    document = {'name': scenario.name, 'seed': int(scenario.seed), 'task': scenario.task,
+                'object': object_entry}
+    if scenario.release is not None:
+        document['release'] = {'position': numbers(scenario.release.position),
+                               'velocity': numbers(scenario.release.velocity)}
+    if scenario.landing_target is not None:
+        document['landing_target'] = numbers(scenario.landing_target)
+    if scenario.place is not None:
+        document['place'] = {'position': numbers(scenario.place)}
+    document['speeds'] = {item.name: float(getattr(scenario.speeds, item.name))
+                          for item in fields(Speeds)}
+    if scenario.perturbations:
+        document['perturbations'] = [
+            {'time': float(item.time), 'object_displacement': numbers(item.object_displacement)}
+            for item in scenario.perturbations]
+    document['duration'] = float(scenario.duration)
+    document['initial_configuration'] = {arm: numbers(scenario.initial_configuration[arm])
+                                         for arm in ARMS}
+    mocap, ft = scenario.sensors.mocap, scenario.sensors.ft
+    document['sensors'] = {
+        'mocap': {item.name: float(getattr(mocap, item.name)) for item in fields(MocapConfig)},
+        'ft': {'force_noise': float(ft.force_noise), 'torque_noise': float(ft.torque_noise),
+               'force_bias': numbers(ft.force_bias), 'torque_bias': numbers(ft.torque_bias)}}
+    spec = scenario.randomization
+    if spec is not None:
+        entry = {'object_position': numbers(spec.object_position),
+                 'object_yaw': float(spec.object_yaw)}
+        entry.update({name: numbers(getattr(spec, name)) for name in RANDOMIZED_RANGES
+                      if getattr(spec, name) is not None})
+        document['randomization'] = entry
+    return document
