@@ -77,7 +77,10 @@ JOINT_STATES = Topic('joint_states', JointState, CONTROL_QOS, per_arm=True)
 TORQUE_COMMAND = Topic('torque_command', JointState, CONTROL_QOS, per_arm=True)
 FT_WRENCH = Topic('ft_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
 MOCAP_OBJECT_POSE = Topic('/mocap/object_pose', PoseStamped, SENSOR_QOS)
+# The tracker answers every mocap sample (stamp = the sample's) and every /clock cycle (stamp =
+# the cycle's; before a track exists the pose covariance[0] is NO_ESTIMATE_COVARIANCE).
 OBJECT_STATE = Topic('/object/state', Odometry, CONTROL_QOS)
+NO_ESTIMATE_COVARIANCE = -1.0
 DS_COMMAND = Topic('ds_command', Odometry, CONTROL_QOS, per_arm=True)
 CONTACT_WRENCH = Topic('contact_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
 OBJECT_DESIRED_TWIST = Topic('/object/desired_twist', TwistStamped, CONTROL_QOS)

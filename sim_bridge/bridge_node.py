@@ -161,7 +161,8 @@ class SimBridge(Node):
         self._wait_for_subscribers = (self.mode == 'lockstep' and self.get_parameter(
             'lockstep_wait_for_subscribers').value)
         self._awaited_nodes = [name for name in
-                               self.get_parameter('lockstep_wait_for_nodes').value if name]
+                               self.get_parameter('lockstep_wait_for_nodes').value
+                               if name and self.mode == 'lockstep']
         self._diagnostics_period_ns = seconds_to_ns(
             self.get_parameter('diagnostics_period').value)
         self._ground_truth_period_ns = seconds_to_ns(
@@ -187,7 +188,7 @@ class SimBridge(Node):
         self._create_interfaces()
         self._started = False
         self._subscribed_wall = None
-        if not self._wait_for_subscribers:
+        if not (self._wait_for_subscribers or self._awaited_nodes):
             self._start_episode()
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         if self.mode == 'lockstep':
@@ -254,10 +255,10 @@ class SimBridge(Node):
                         read_only=True))
         self.declare_parameter(
             'lockstep_wait_for_nodes', [''],
-            _descriptor('lockstep: with lockstep_wait_for_subscribers, also wait until these '
-                        'nodes (full names, e.g. /bag_record) and their publishers are in the '
-                        "graph, so a recorder matches every node's publishers before the first "
-                        "state ('' entries are ignored)", read_only=True))
+            _descriptor('lockstep: publish the first state only once these nodes (full '
+                        'names, e.g. /ds_motion_generator, /bag_record) and their publishers '
+                        'are in the graph, plus a settling second, so every node sees the run '
+                        "from its first cycle ('' entries are ignored)", read_only=True))
         self.declare_parameter(
             'diagnostics_period', 1.0,
             _descriptor('sim time between /diagnostics messages [s]',
@@ -349,8 +350,9 @@ class SimBridge(Node):
         return all(answer is not None for answer in self._answers.values())
 
     def _graph_ready(self):
-        """Return True once every stream has a subscriber and the awaited nodes publish."""
-        if not all(s.publisher.get_subscription_count() > 0 for s in self._streams()):
+        """Return True once the streams have subscribers (if awaited) and the nodes publish."""
+        if self._wait_for_subscribers and not all(
+                s.publisher.get_subscription_count() > 0 for s in self._streams()):
             return False
         present = {f'{namespace.rstrip("/")}/{name}'
                    for name, namespace in self.get_node_names_and_namespaces()}

@@ -112,3 +112,33 @@ def test_return_home_and_velocity_error():
 def test_criteria_refuse_out_of_range_values():
     with pytest.raises(ValueError, match='grasp_hold_time'):
         metrics.EventCriteria(grasp_hold_time=-1.0)
+
+
+def synthetic_grasp_log(left_contact_index, right_contact_index, samples=1000):
+    """Return a trajectory log at rest where each pad touches from its index on."""
+    from dual_arm_control.evaluation.trajectory import ARM_FIELDS, OBJECT_FIELDS
+    t = 0.3 + DT * np.arange(samples)
+    data = {'t': t}
+    for name in OBJECT_FIELDS:
+        data[name] = np.zeros((samples, 4 if name == 'object_quat_xyzw' else 3))
+    data['object_quat_xyzw'][:, 3] = 1.0
+    for arm, first in (('left', left_contact_index), ('right', right_contact_index)):
+        for name in ARM_FIELDS:
+            data[f'{arm}_{name}'] = np.zeros((samples, 7 if name in ('q', 'dq', 'tau') else 3))
+        data[f'{arm}_pad_contact'] = np.arange(samples) >= first
+        data[f'{arm}_pad_force'] = np.zeros((samples, 3))
+    return data
+
+
+@pytest.mark.parametrize('cycles_apart, within_limit', [(5, True), (6, False)])
+def test_contact_gap_of_whole_cycles_is_exact(cycles_apart, within_limit):
+    """5 FRI cycles apart is 10 ms exactly (not 0.010000000000000009) and meets the limit."""
+    from dual_arm_control.description.cell import load_cell
+    from dual_arm_control.evaluation.episode import CONTACT_GAP_LIMIT, episode_metrics
+    from dual_arm_control.scenario import load_scenario
+    data = synthetic_grasp_log(562, 562 + cycles_apart)
+    result = episode_metrics(load_scenario('paper_toss'), data, load_cell())
+    assert result['contact_time_gap'] == round(cycles_apart * DT, 9)
+    assert (result['contact_time_gap'] <= CONTACT_GAP_LIMIT) == within_limit
+    assert result['t_grasp'] is not None
+    assert 'landing_prediction_error' in result and result['landing_prediction_error'] is None

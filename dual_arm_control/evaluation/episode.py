@@ -80,7 +80,7 @@ def predicted_landing(p_release, v_release, object_height, cell):
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
     """Return the metrics dict of one episode; times count from start_time [s] of sim time."""
     t = data['t'] - start_time
-    result = dict.fromkeys(METRIC_KEYS)
+    result = dict.fromkeys(METRIC_KEYS + ('landing_prediction_error', 'place_speed'))
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
     normals, directions = _contact_directions(scenario, cell)
     for arm in ARMS:
@@ -92,7 +92,10 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         result[f'impact_speed_along_normal_{arm}'] = metrics.impact_speed(
             velocity, contact_index[arm], normals[arm])
     if None not in contact_index.values():
-        result['contact_time_gap'] = abs(result['t_contact_left'] - result['t_contact_right'])
+        # Rounded to whole nanoseconds: the stamps are multiples of the FRI period, and a 10 ms
+        # gap must not read 0.010000000000000009 s.
+        result['contact_time_gap'] = round(
+            abs(result['t_contact_left'] - result['t_contact_right']), 9)
     grasp, release = metrics.grasp_and_release_indices(
         t, data['left_pad_contact'], data['right_pad_contact'])
     result['t_grasp'] = _time(t, grasp)

@@ -122,6 +122,11 @@ def odometry_arrays(msg):
     return position, quat_xyzw_to_matrix(quat_xyzw), linear, angular
 
 
+def has_estimate(msg):
+    """Return False for an /object/state that says the tracker has no estimate yet."""
+    return msg.pose.covariance[0] != contract.NO_ESTIMATE_COVARIANCE
+
+
 def fill_odometry(msg, position, R_world, linear, angular):
     """Write a pose (position, rotation matrix) and twist into an Odometry message."""
     set_vector3(msg.pose.pose.position, position)

@@ -2,7 +2,8 @@
 ds_motion_generator: phases, coordinated modulated DS, orientation and object DS (eqs. 1-9).
 
 On every DS tick (200 Hz on the FRI cycle stamps) it gathers both arms' joint states and FT
-readings of that cycle and the newest object estimate, runs DualArmMotionGenerator.step and
+readings of that cycle and the newest object estimate (with `lockstep`, the tracker's estimate
+stamped with the tick, waited for), runs DualArmMotionGenerator.step and
 publishes, stamped with the tick: per-arm DS commands, the desired object twist, the phase and
 markers. Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start
 time and rates. Services start an episode, send the arms home and reset.
@@ -16,7 +17,7 @@ from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotio
                                                     MotionGeneratorConfig, ObjectMeasurement)
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
-                                           fill_odometry,
+                                           fill_odometry, has_estimate,
                                            joint_state_arrays, odometry_arrays, RefusalCounter,
                                            run_node, seconds_to_ns, set_vector3, stamp_ns,
                                            TickSchedule, time_msg, wrench_array)
@@ -53,10 +54,16 @@ class DsMotionGenerator(Node):
         self._auto_start_ns = seconds_to_ns(self.declare_parameter(
             'auto_start_time', 0.0, ParameterDescriptor(
                 description='sim time [s] at which an episode starts by itself (after the FT '
-                            'tare); 0 = wait for the start service', read_only=True)).value)
+                            'tare, and once an object estimate arrived); 0 = wait for the start '
+                            'service', read_only=True)).value)
         self._schedule = TickSchedule(self.declare_parameter(
             'ds_period', 0.005, ParameterDescriptor(
                 description='DS tick period [s] on the FRI cycle grid', read_only=True)).value)
+        self._lockstep = self.declare_parameter(
+            'lockstep', False, ParameterDescriptor(
+                description='on each tick wait for the object estimate stamped with the tick '
+                            '(the tracker answers every /clock cycle): lockstep runs become '
+                            'independent of message timing', read_only=True)).value
         self._config_parameters = ConfigParameters(self, base, self._on_config)
         self._pending_config = None
         self._generator = DualArmMotionGenerator(self._config_parameters.config)
@@ -67,6 +74,7 @@ class DsMotionGenerator(Node):
         self._joint_states = {}
         self._ft = {}
         self._object = None
+        self._object_stamp_ns = None
         self._started = self._auto_start_ns == 0
         self._commands = {'start': False, 'go_home': False, 'reset': False}
         self._last_marker_ns = None
@@ -110,12 +118,18 @@ class DsMotionGenerator(Node):
         return response
 
     def _on_object(self, msg):
-        try:
-            position, rotation, linear, angular = odometry_arrays(msg)
-        except InputError as error:
-            self._refusals.refuse('object_state', str(error))
-            return
-        self._object = (stamp_ns(msg.header.stamp), position, rotation, linear, angular)
+        t_ns = stamp_ns(msg.header.stamp)
+        if not has_estimate(msg):
+            self._object = None
+        else:
+            try:
+                position, rotation, linear, angular = odometry_arrays(msg)
+            except InputError as error:
+                self._refusals.refuse('object_state', str(error))
+                return
+            self._object = (t_ns, position, rotation, linear, angular)
+        self._object_stamp_ns = t_ns
+        self._try_tick()
 
     def _on_joint_state(self, arm, msg):
         try:
@@ -140,6 +154,9 @@ class DsMotionGenerator(Node):
         for t_ns in sorted(self._joint_states):
             if len(self._joint_states[t_ns]) < 2 or len(self._ft.get(t_ns, {})) < 2:
                 continue
+            if (self._lockstep and self._schedule.due(t_ns)
+                    and self._object_stamp_ns != t_ns):
+                break
             joints = self._joint_states.pop(t_ns)
             readings = self._ft.pop(t_ns)
             for stale in [s for s in self._joint_states if s < t_ns]:
@@ -161,7 +178,8 @@ class DsMotionGenerator(Node):
             _, R_sensor = self._models[arm].sensor_pose(joints[arm])
             arms[arm] = ArmMeasurement(p_tool, R_tool, readings[arm], R_sensor)
         obj = self._object_at(t_ns, arms)
-        start = self._commands['start'] or (not self._started and t_ns >= self._auto_start_ns)
+        start = self._commands['start'] or (not self._started and t_ns >= self._auto_start_ns
+                                            and self._object is not None)
         self._started = self._started or start
         try:
             output = self._generator.step(arms, obj, dt, start_episode=start,

@@ -1,15 +1,18 @@
 """
-object_tracker: the object's pose and twist from motion capture, one answer per sample.
+object_tracker: the object's pose and twist from motion capture, per sample and per cycle.
 
 Wraps core.tracker.ObjectTracker. Every accepted /mocap/object_pose sample is answered by one
 /object/state (nav_msgs/Odometry, frame world, child 'object') carrying the sample's stamp and
 the estimate at that stamp, also when the filter rejects the sample as an outlier or as stale
 (the estimate is then the prediction), so the lockstep bridge's wait for the tracker always
-ends. Samples with NaN or Inf, a zero quaternion or a stamp older than the previous sample are
-refused: counted, logged (throttled) and not answered. A stamp more than TIME_RESET_GAP older
-than the previous one is no late sample but a clock that went back (simulation reset): the filter
-restarts at that sample. This is decided on the stamps alone because the lockstep bridge sends a
-reset cycle's mocap samples, and waits for their answers, before its /clock.
+ends. Every /clock cycle gets one more /object/state stamped with the cycle: the estimate at
+that time, or (pose covariance[0] = contract.NO_ESTIMATE_COVARIANCE) the news that there is no
+track yet; the lockstep DS and wrench QP wait for it at their ticks. Samples with NaN or Inf, a
+zero quaternion or a stamp older than the previous sample are refused: counted, logged
+(throttled) and not answered. A stamp more than TIME_RESET_GAP older than the previous one is no
+late sample but a clock that went back (simulation reset): the filter restarts at that sample.
+This is decided on the stamps alone because the lockstep bridge sends a reset cycle's mocap
+samples, and waits for their answers, before its /clock.
 
 Live tuning: a TrackerConfig change (ConfigParameters) is applied at the next sample by
 restarting the filter with the new config when that costs nothing: no track yet, track lost, or
@@ -70,6 +73,8 @@ class ObjectTrackerNode(Node):
         self._mocap_sub = self.create_subscription(
             contract.MOCAP_OBJECT_POSE.msg_type, contract.MOCAP_OBJECT_POSE.name, self._on_mocap,
             contract.MOCAP_OBJECT_POSE.qos)
+        self._clock_sub = self.create_subscription(
+            contract.CLOCK.msg_type, contract.CLOCK.name, self._on_clock, contract.CLOCK.qos)
         self.get_logger().info(
             f'object tracker up: {self._mocap_sub.topic_name} -> {self._state_pub.topic_name}')
 
@@ -125,6 +130,22 @@ class ObjectTrackerNode(Node):
         self._publish_state(t_ns, self._tracker.state(t))
         self._diagnostics.publish_if_due(t_ns, self._report)
 
+    def _on_clock(self, msg):
+        """
+        Publish the estimate at the cycle's time, or that there is none yet.
+
+        In lockstep the bridge publishes /clock after the tracker answered the cycle's mocap
+        samples, so this estimate holds all of them: the DS and the wrench QP wait for it at
+        their ticks, which makes their input independent of message timing.
+        """
+        t_ns = stamp_ns(msg.clock)
+        estimate = (self._tracker.state(t_ns / NANOSECONDS_PER_SECOND)
+                    if self._last_stamp_ns is not None and t_ns >= self._last_stamp_ns else None)
+        if estimate is None:
+            self._publish_no_estimate(t_ns)
+        else:
+            self._publish_state(t_ns, estimate)
+
     def _apply_pending_config(self, t):
         """Restart the filter with the pending config if no track is running or it rests."""
         if self._pending_config is None:
@@ -138,8 +159,17 @@ class ObjectTrackerNode(Node):
         self._pending_config = None
         self.counters['config_changes_applied'] += 1
 
+    def _publish_no_estimate(self, t_ns):
+        """Publish an /object/state stamped t_ns that says there is no estimate."""
+        msg = contract.OBJECT_STATE.msg_type()
+        msg.header.frame_id = contract.WORLD_FRAME
+        msg.child_frame_id = 'object'
+        msg.header.stamp = time_msg(t_ns)
+        msg.pose.covariance[0] = contract.NO_ESTIMATE_COVARIANCE
+        self._state_pub.publish(msg)
+
     def _publish_state(self, t_ns, estimate):
-        """Publish the estimate with the sample's stamp."""
+        """Publish the estimate stamped t_ns (a sample's or a cycle's time)."""
         msg = self._state_msg
         msg.header.stamp = time_msg(t_ns)
         set_vector3(msg.pose.pose.position, estimate.position)

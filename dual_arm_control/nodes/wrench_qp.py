@@ -2,8 +2,9 @@
 wrench_qp: the contact wrench of each pad, once per DS tick (pipeline.WrenchDistributor).
 
 A tick t_j is processed when /object/desired_twist(t_j), /dual_arm/phase(t_j) and the joint
-states (t_j) of both arms have arrived; the tool poses come from the arms' pinocchio models and
-the object state is the newest /object/state predicted to t_j with its own twist. Every tick
+states (t_j) of both arms have arrived (with `lockstep`, also the tracker's /object/state(t_j));
+the tool poses come from the arms' pinocchio models and the object state is the newest
+/object/state predicted to t_j with its own twist. Every tick
 publishes /<arm>/contact_wrench (WrenchStamped, frame world, force the pad applies on the
 object, moment about the tool point) stamped t_j: zeros outside CONTACT / MANIPULATE, before the
 first object state and when the QP fails (the distributor reports it; counted).
@@ -25,7 +26,7 @@ from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.validation import check_range
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
-                                           joint_state_arrays,
+                                           has_estimate, joint_state_arrays,
                                            odometry_arrays, RefusalCounter,
                                            run_node, set_wrench, stamp_ns, TickSchedule, time_msg,
                                            vector3)
@@ -87,6 +88,12 @@ class WrenchQPNode(Node):
         self._distributor = WrenchDistributor(self._config, self.object_mass, self.object_size)
         self._pending_config = None
         self._pending_object = None
+        self._tick_inputs = TICK_INPUTS | ({'object'} if self.declare_parameter(
+            'lockstep', False, ParameterDescriptor(
+                description='on each tick also wait for the object estimate stamped with the '
+                            'tick (the tracker answers every /clock cycle): lockstep runs '
+                            'become independent of message timing', read_only=True)).value
+            else set())
         self._schedule = TickSchedule(FIRST_TICK_PERIOD)
         self._last_wrenches = None
 
@@ -159,13 +166,18 @@ class WrenchQPNode(Node):
     # -- inputs ----------------------------------------------------------------------------------
 
     def _on_object_state(self, msg):
-        """Keep the newest valid object state."""
-        try:
-            p_world, R_world, v_world, w_world = odometry_arrays(msg)
-        except InputError as error:
-            self.refusals.refuse('object_state', str(error))
-            return
-        self._object_state = (stamp_ns(msg.header.stamp), p_world, R_world, v_world, w_world)
+        """Keep the newest valid object state (None: no track yet); mark it as arrived."""
+        t_ns = stamp_ns(msg.header.stamp)
+        if not has_estimate(msg):
+            self._object_state = None
+        else:
+            try:
+                p_world, R_world, v_world, w_world = odometry_arrays(msg)
+            except InputError as error:
+                self.refusals.refuse('object_state', str(error))
+                return
+            self._object_state = (t_ns, p_world, R_world, v_world, w_world)
+        self._arrived(t_ns, 'object')
 
     def _on_desired_twist(self, msg):
         """Keep the newest valid desired object twist; mark the tick's input as arrived."""
@@ -198,7 +210,7 @@ class WrenchQPNode(Node):
         """Record an input of stamp t_ns; process the tick t_ns once all its inputs are in."""
         arrived = self._arrivals.setdefault(t_ns, set())
         arrived.add(name)
-        if arrived >= TICK_INPUTS:
+        if arrived >= self._tick_inputs:
             self._arrivals = {t: inputs for t, inputs in self._arrivals.items() if t > t_ns}
             self._process_tick(t_ns)
         while len(self._arrivals) > MAX_PENDING_STAMPS:
