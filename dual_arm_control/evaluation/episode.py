@@ -77,6 +77,24 @@ def predicted_landing(p_release, v_release, object_height, cell):
     return landing.position
 
 
+def planned_release(scenario, cell):
+    """
+    Return the object's planned (position, velocity) at release [m, m/s], or None.
+
+    The scenario's release state, or for a landing target the one the motion generator plans
+    (release position of its toss config, velocity from the ballistic solution).
+    """
+    if scenario.release is not None:
+        return (np.asarray(scenario.release.position, dtype=float),
+                np.asarray(scenario.release.velocity, dtype=float))
+    if scenario.task not in TOSS_TASKS:
+        return None
+    toss = motion_config_for_scenario(scenario, cell).toss
+    direction = np.asarray(toss.release_direction, dtype=float)
+    return (np.asarray(toss.release_position, dtype=float),
+            toss.toss_speed * direction / np.linalg.norm(direction))
+
+
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
     """Return the metrics dict of one episode; times count from start_time [s] of sim time."""
     t = data['t'] - start_time
@@ -109,11 +127,11 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         v_release = data['object_velocity'][release]
         result['release_position'] = _vector(p_release)
         result['release_velocity'] = _vector(v_release)
-        if scenario.release is not None:
-            result['release_position_error'] = float(
-                np.linalg.norm(p_release - scenario.release.position))
+        planned = planned_release(scenario, cell)
+        if planned is not None:
+            result['release_position_error'] = float(np.linalg.norm(p_release - planned[0]))
             result['release_velocity_error'] = metrics.relative_velocity_error(
-                v_release, scenario.release.velocity)
+                v_release, planned[1])
         height = scenario.object.size[2]
         landed = metrics.landing_index(t, data['object_position'], release + 1, 0.5 * height,
                                        cell.surface_height)

@@ -1,0 +1,87 @@
+"""
+Quantities of the paper experiments computed from trajectories and plans (SI units).
+
+Each function computes one quantity from plain arrays or geometry so it can be tested on
+synthetic data; dual_arm_experiment (experiments.py) runs the episodes around them.
+"""
+
+import math
+
+from dual_arm_control.core.ballistics import (centre_landing_height,
+                                              release_velocity_minimum_speed, STANDARD_GRAVITY)
+from dual_arm_control.evaluation.metrics import mechanical_energy
+import numpy as np
+
+
+def reduction_percent(baseline, proposed):
+    """Return (baseline - proposed) / baseline * 100 [%], or None if either is missing."""
+    if baseline is None or proposed is None or baseline == 0.0:
+        return None
+    return 100.0 * (baseline - proposed) / baseline
+
+
+def positive_work(t, tau, dq):
+    """Return the integral of max(tau . dq, 0) dt [J]: work the drives supply, none recovered."""
+    power = np.maximum(np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq)), 0.0)
+    return float(np.trapezoid(power, np.asarray(t))) if len(power) > 1 else 0.0
+
+
+def energy_without_gravity(t, tau, dq, gravity_torque):
+    """
+    Return the integral of |(tau - g(q)) . dq| dt [J]: the energy of the torques beyond gravity.
+
+    gravity_torque (N, 7) [N m] is g(q) at every sample. It leaves out the potential energy of
+    the arm's own links, which goes down and up by the same amount in every cycle that starts
+    and ends at the standby pose.
+    """
+    return mechanical_energy(t, np.asarray(tau) - np.asarray(gravity_torque), dq)
+
+
+def cumulative_energy(t, tau, dq):
+    """Return the running integral of |tau . dq| [J] at every sample (trapezoidal rule)."""
+    power = np.abs(np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq)))
+    steps = 0.5 * (power[1:] + power[:-1]) * np.diff(np.asarray(t))
+    return np.concatenate(([0.0], np.cumsum(steps)))
+
+
+def statistics(values):
+    """Return {'mean', 'std', 'count'} of the non-missing values (None when there are none)."""
+    present = [float(v) for v in values if v is not None]
+    if not present:
+        return {'mean': None, 'std': None, 'count': 0}
+    return {'mean': float(np.mean(present)), 'std': float(np.std(present)),
+            'count': len(present)}
+
+
+def landing_targets(cell, object_size, release_position, xs, ys, max_release_speed):
+    """
+    Return the landing targets (N, 3) [m]: the grid xs x ys on the front table, kept if usable.
+
+    A target is kept when the whole object footprint lies on the table top and the least
+    release speed from release_position is at most max_release_speed [m/s]. z is the object
+    centre resting on the table.
+    """
+    table = cell.front_table
+    half = 0.5 * np.asarray(object_size, dtype=float)
+    height = centre_landing_height(table.top_height, object_size[2])
+    targets = []
+    for x in xs:
+        for y in ys:
+            corners = [(x + sx * half[0], y + sy * half[1]) for sx in (-1, 1) for sy in (-1, 1)]
+            if not all(table.covers(*corner) for corner in corners):
+                continue
+            target = np.array([x, y, height])
+            solution = release_velocity_minimum_speed(np.asarray(release_position), target)
+            if solution.speed <= max_release_speed:
+                targets.append(target)
+    return np.array(targets).reshape(-1, 3)
+
+
+def longest_toss(speed, drop, gravity=STANDARD_GRAVITY):
+    """
+    Return the longest horizontal distance [m] of a drag-free toss at `speed` [m/s].
+
+    R = v / g sqrt(v^2 + 2 g h) for a landing `drop` h [m] below the release, at the best
+    elevation.
+    """
+    return speed / gravity * math.sqrt(speed ** 2 + 2.0 * gravity * drop)
