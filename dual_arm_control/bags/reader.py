@@ -1,0 +1,437 @@
+"""
+BagReader: the messages of an MCAP bag (one file, its split files or a rosbag2 folder) in order.
+
+Messages come out as raw CDR with topic, type name, log time and publish time, in log-time
+order across all files of the bag (ties keep the recorded order). Each topic's offered QoS is
+read back from the 'offered_qos_profiles' channel metadata. Damaged files (torn, truncated,
+corrupt: see bags/info.py) are refused unless recovery is asked for; then the messages of
+their complete records are read. Also here: the pure helpers of bag_play (topic selection,
+remapping, the playback window and the wall-clock schedule).
+"""
+
+from dataclasses import dataclass, field
+import heapq
+import io
+from pathlib import Path
+import re
+
+from dual_arm_control.bags import BagError
+from dual_arm_control.bags.info import inspect_bag, MAGIC
+from dual_arm_control.bags.writer import split_path
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.records import Channel, Message, Schema
+from mcap.stream_reader import StreamReader
+from rclpy.duration import Duration
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
+                       ReliabilityPolicy)
+import yaml
+
+METADATA_FILE = 'metadata.yaml'
+NANOSECONDS_PER_SECOND = 1_000_000_000
+# Publisher QoS of a topic without (readable) offered_qos_profiles metadata.
+DEFAULT_DEPTH = 100
+DEFAULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DEFAULT_DEPTH,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+# rosbag2 writes an infinite QoS duration as INT64_MAX ns (recent) or as {2^31 - 1 s, 2^32 - 1
+# ns} (older): any duration from 2^31 - 1 s on means 'infinite' (= rclpy's unspecified 0).
+_INFINITE_SECONDS = 2**31 - 1
+_POLICIES = {'history': HistoryPolicy, 'reliability': ReliabilityPolicy,
+             'durability': DurabilityPolicy, 'liveliness': LivelinessPolicy}
+_UNSET_POLICY_NAMES = ('SYSTEM_DEFAULT', 'UNKNOWN', 'BEST_AVAILABLE')
+_READ_ERRORS = (McapError, EOFError, ValueError, KeyError, UnicodeDecodeError, OSError)
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    """One recorded message: topic, 'package/msg/Type', log and publish time [ns], CDR bytes."""
+
+    topic: str
+    type_name: str
+    log_time: int
+    publish_time: int
+    data: bytes
+
+
+@dataclass
+class BagTopic:
+    """A topic of a bag: its type, the offered QoS profiles as recorded (YAML), message count."""
+
+    name: str
+    type_name: str
+    qos_yaml: str = ''
+    count: int = 0
+
+    @property
+    def qos(self):
+        """Return the QoSProfile to replay this topic with (see qos_from_offered_profiles)."""
+        return qos_from_offered_profiles(self.qos_yaml)
+
+
+@dataclass
+class _File:
+    """One file of a bag: its inspection summary and, when damaged, the recoverable bytes."""
+
+    path: Path
+    summary: object
+    channels: dict = field(default_factory=dict)
+    schemas: dict = field(default_factory=dict)
+
+
+# -- QoS ---------------------------------------------------------------------------------------
+
+def _policy(kind, value):
+    """Return the rclpy policy for a rosbag2 value (name or rmw integer); None if unset."""
+    enum = _POLICIES[kind]
+    try:
+        policy = enum(value if isinstance(value, int)
+                      else enum.get_from_short_key(str(value).strip().lower()))
+    except (ValueError, KeyError, TypeError):
+        return None
+    return None if policy.name in _UNSET_POLICY_NAMES else policy
+
+
+def _duration(value):
+    """Return a rosbag2 '{sec, nsec}' mapping as a Duration; None for unset or infinite."""
+    if not isinstance(value, dict):
+        return None
+    try:
+        seconds, nanoseconds = int(value.get('sec', 0)), int(value.get('nsec', 0))
+    except (TypeError, ValueError):
+        return None
+    if seconds >= _INFINITE_SECONDS or seconds < 0 or (seconds == 0 and nanoseconds == 0):
+        return None
+    return Duration(seconds=seconds, nanoseconds=nanoseconds)
+
+
+def parse_offered_qos_profiles(text):
+    """
+    Return the QoSProfiles of rosbag2 'offered_qos_profiles' YAML (one per recorded publisher).
+
+    Policies may be names ('reliable') or rmw integers (older rosbag2); unset, unknown and
+    'best_available' policies take DEFAULT_QOS's value, infinite durations stay unspecified.
+    Return [] for empty, unreadable or malformed text.
+    """
+    try:
+        entries = yaml.safe_load(text) if text else None
+    except yaml.YAMLError:
+        return []
+    if not isinstance(entries, list):
+        return []
+    profiles = []
+    for entry in entries:
+        if not isinstance(entry, dict):
+            return []
+        history = _policy('history', entry.get('history')) or DEFAULT_QOS.history
+        try:
+            depth = int(entry.get('depth', 0))
+        except (TypeError, ValueError):
+            depth = 0
+        if history == HistoryPolicy.KEEP_LAST and depth <= 0:
+            depth = DEFAULT_DEPTH
+        profile = QoSProfile(
+            history=history, depth=max(depth, 0),
+            reliability=_policy('reliability', entry.get('reliability'))
+            or DEFAULT_QOS.reliability,
+            durability=_policy('durability', entry.get('durability'))
+            or DEFAULT_QOS.durability,
+            avoid_ros_namespace_conventions=bool(
+                entry.get('avoid_ros_namespace_conventions', False)))
+        liveliness = _policy('liveliness', entry.get('liveliness'))
+        if liveliness is not None:
+            profile.liveliness = liveliness
+        for name in ('deadline', 'lifespan', 'liveliness_lease_duration'):
+            duration = _duration(entry.get(name))
+            if duration is not None:
+                setattr(profile, name, duration)
+        profiles.append(profile)
+    return profiles
+
+
+def qos_from_offered_profiles(text):
+    """
+    Return the one publisher QoS that replays a topic recorded with these offered profiles.
+
+    One profile: that profile. Several publishers: reliable only if all were, transient local
+    only if all were, keep-all if any was, else keep-last with the largest depth (rosbag2's
+    rule: every original subscriber stays compatible). No readable profile: DEFAULT_QOS
+    (reliable, volatile, keep-last 100).
+    """
+    profiles = parse_offered_qos_profiles(text)
+    if not profiles:
+        return QoSProfile(history=DEFAULT_QOS.history, depth=DEFAULT_QOS.depth,
+                          reliability=DEFAULT_QOS.reliability,
+                          durability=DEFAULT_QOS.durability)
+    if len(profiles) == 1:
+        return profiles[0]
+    keep_all = any(p.history == HistoryPolicy.KEEP_ALL for p in profiles)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
+        depth=max(p.depth for p in profiles) or DEFAULT_DEPTH,
+        reliability=(ReliabilityPolicy.RELIABLE
+                     if all(p.reliability == ReliabilityPolicy.RELIABLE for p in profiles)
+                     else ReliabilityPolicy.BEST_EFFORT),
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL
+                    if all(p.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in profiles)
+                    else DurabilityPolicy.VOLATILE))
+
+
+# -- the files of a bag ------------------------------------------------------------------------
+
+def bag_files(path):
+    """
+    Return the files of a bag, in order.
+
+    A rosbag2 folder: the relative_file_paths of its metadata.yaml (or, without one, its
+    .mcap files in name order). An .mcap file: it and its split continuations <stem>_1.mcap,
+    <stem>_2.mcap, ... as BagWriter names them.
+    """
+    path = Path(path)
+    if path.is_dir():
+        return _folder_files(path)
+    if not path.is_file():
+        raise BagError(f'{path}: no such bag file or folder')
+    files = [path]
+    while split_path(path, len(files)).is_file():
+        files.append(split_path(path, len(files)))
+    return files
+
+
+def _folder_files(folder):
+    """Return the data files of a rosbag2 folder."""
+    metadata_path = folder / METADATA_FILE
+    if not metadata_path.is_file():
+        files = sorted(folder.glob('*.mcap'), key=_natural_key)
+        if not files:
+            raise BagError(f'{folder}: no {METADATA_FILE} and no .mcap files')
+        return files
+    try:
+        metadata = yaml.safe_load(metadata_path.read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise BagError(f'{metadata_path}: cannot read: {error}') from error
+    information = (metadata or {}).get('rosbag2_bagfile_information') if isinstance(
+        metadata, dict) else None
+    if not isinstance(information, dict):
+        raise BagError(f'{metadata_path}: no rosbag2_bagfile_information mapping')
+    storage = information.get('storage_identifier', 'mcap')
+    if storage != 'mcap':
+        raise BagError(f'{metadata_path}: storage {storage!r} is not supported (only mcap)')
+    names = information.get('relative_file_paths') or []
+    if not names:
+        raise BagError(f'{metadata_path}: relative_file_paths is empty')
+    files = [folder / name for name in names]
+    for file in files:
+        if not file.is_file():
+            raise BagError(f'{metadata_path}: listed file {file} does not exist')
+        if file.suffix in ('.zstd', '.lz4'):
+            raise BagError(f'{file}: file-compressed bags are not supported; decompress it')
+    return files
+
+
+def _natural_key(path):
+    """Sort key that puts bag_2.mcap before bag_10.mcap."""
+    return [int(part) if part.isdigit() else part for part in re.split(r'(\d+)', path.name)]
+
+
+def _damage_line(summary):
+    """Return 'FILE is torn (why); N messages are recoverable' for a damaged file."""
+    return (f'{summary.path} is {summary.status} ({summary.problem}); '
+            f'{summary.message_count} messages are recoverable')
+
+
+class BagReader:
+    """
+    The messages of a bag in log-time order, with its topics (type, QoS, count) and time span.
+
+    Damaged files raise BagError naming the file, the damage and what is recoverable, unless
+    recover=True: then `damaged` lists their summaries (bags/info.py BagSummary) and only the
+    messages of their complete records are read.
+    """
+
+    def __init__(self, path, recover=False):
+        self.path = Path(path)
+        self._files = [self._open(file, recover) for file in bag_files(path)]
+        self.damaged = [f.summary for f in self._files if f.summary.status != 'complete']
+        self.topics = {}
+        for file in self._files:
+            self._add_topics(file)
+        starts = [f.summary.start_ns for f in self._files if f.summary.start_ns is not None]
+        ends = [f.summary.end_ns for f in self._files if f.summary.end_ns is not None]
+        self.start_ns = min(starts) if starts else None
+        self.end_ns = max(ends) if ends else None
+
+    @property
+    def files(self):
+        """Return the paths of the bag's files, in order."""
+        return [file.path for file in self._files]
+
+    @property
+    def message_count(self):
+        """Return the number of (readable) messages over all topics."""
+        return sum(topic.count for topic in self.topics.values())
+
+    def _open(self, path, recover):
+        """Inspect one file; refuse a damaged one unless recovering."""
+        summary = inspect_bag(path)
+        if summary.status != 'complete' and not recover:
+            raise BagError(f'{_damage_line(summary)}: pass --recover to play them')
+        file = _File(path, summary)
+        if summary.status == 'complete':
+            with open(path, 'rb') as stream:
+                mcap_summary = make_reader(stream).get_summary()
+            file.channels = dict(mcap_summary.channels)
+            file.schemas = dict(mcap_summary.schemas)
+        else:
+            for record in _recoverable_records(path, summary):
+                if isinstance(record, Schema):
+                    file.schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    file.channels[record.id] = record
+        return file
+
+    def _add_topics(self, file):
+        """Merge one file's channels and counts into the bag's topics."""
+        for channel in file.channels.values():
+            schema = file.schemas.get(channel.schema_id)
+            type_name = schema.name if schema is not None else ''
+            topic = self.topics.get(channel.topic)
+            if topic is None:
+                topic = self.topics[channel.topic] = BagTopic(
+                    channel.topic, type_name, channel.metadata.get('offered_qos_profiles', ''))
+            elif topic.type_name != type_name:
+                raise BagError(f'{file.path}: topic {channel.topic} has type {type_name} here '
+                               f'but {topic.type_name} in an earlier file')
+        for name, info in file.summary.topics.items():
+            if name in self.topics:
+                self.topics[name].count += info.count
+
+    def messages(self, topics=None, start_ns=None, end_ns=None):
+        """
+        Yield BagMessages of the given topics (default all) with start_ns <= log time < end_ns.
+
+        Log-time order across files; equal log times keep the order of the files and, within
+        a file, the recorded order.
+        """
+        wanted = None if topics is None else frozenset(topics)
+        streams = [self._file_messages(file, wanted, start_ns, end_ns)
+                   for file in self._files]
+        return heapq.merge(*streams, key=lambda message: message.log_time)
+
+    def _file_messages(self, file, wanted, start_ns, end_ns):
+        """Yield the selected messages of one file in log-time order."""
+        if file.summary.status != 'complete':
+            records = [r for r in _recoverable_records(file.path, file.summary)
+                       if isinstance(r, Message)]
+            records.sort(key=lambda record: record.log_time)
+            for record in records:
+                message = self._message(file, record, wanted, start_ns, end_ns)
+                if message is not None:
+                    yield message
+            return
+        with open(file.path, 'rb') as stream:
+            reader = make_reader(stream)
+            try:
+                for _, _, record in reader.iter_messages(
+                        topics=None if wanted is None else list(wanted),
+                        starting_at=start_ns, ending_before=end_ns, log_time_order=True):
+                    message = self._message(file, record, wanted, start_ns, end_ns)
+                    if message is not None:
+                        yield message
+            except _READ_ERRORS as error:
+                raise BagError(f'{file.path}: cannot read messages: {error}') from error
+
+    def _message(self, file, record, wanted, start_ns, end_ns):
+        """Return the BagMessage of a record, or None if it is outside the selection."""
+        channel = file.channels.get(record.channel_id)
+        if channel is None or (wanted is not None and channel.topic not in wanted):
+            return None
+        if (start_ns is not None and record.log_time < start_ns) or (
+                end_ns is not None and record.log_time >= end_ns):
+            return None
+        return BagMessage(channel.topic, self.topics[channel.topic].type_name, record.log_time,
+                          record.publish_time, bytes(record.data))
+
+
+def _recoverable_records(path, summary):
+    """Return the records of a damaged file's complete part (up to the damage), in order."""
+    data = path.read_bytes()[:max(summary.recovered_bytes, len(MAGIC))]
+    records = []
+    reader = StreamReader(io.BytesIO(data), validate_crcs=True)
+    try:
+        for record in reader.records:
+            records.append(record)
+    except _READ_ERRORS:
+        pass
+    return records
+
+
+# -- what and how to play ----------------------------------------------------------------------
+
+def select_topics(available, names=(), regex=None, exclude=None):
+    """
+    Return the topics to play, sorted: all, or those named or matching regex, minus exclude.
+
+    regex and exclude are regular expressions matched anywhere in the name (re.search), like
+    bag_record's --regex. A name that is not in the bag raises BagError.
+    """
+    available = set(available)
+    missing = sorted(set(names) - available)
+    if missing:
+        raise BagError(f'topic(s) {missing} not in the bag (it has {sorted(available)})')
+    include = _compile(regex, '--regex')
+    skip = _compile(exclude, '--exclude')
+    if not names and include is None:
+        chosen = available
+    else:
+        chosen = set(names) | {t for t in available if include and include.search(t)}
+    return sorted(t for t in chosen if not (skip and skip.search(t)))
+
+
+def _compile(pattern, option):
+    """Compile an optional regular expression; raise BagError naming the option if invalid."""
+    if pattern is None:
+        return None
+    try:
+        return re.compile(pattern)
+    except re.error as error:
+        raise BagError(f'invalid {option} {pattern!r}: {error}') from error
+
+
+def parse_remaps(rules):
+    """Return {old topic: new topic} of '/old:=/new' rules; raise BagError for a bad rule."""
+    remaps = {}
+    for rule in rules:
+        old, separator, new = rule.partition(':=')
+        if not separator or not old.startswith('/') or not new.startswith('/') or \
+                ':=' in new or any(c.isspace() for c in rule):
+            raise BagError(f'invalid --remap {rule!r}: expected /old/topic:=/new/topic')
+        if old in remaps:
+            raise BagError(f'--remap: {old} is remapped twice')
+        remaps[old] = new
+    return remaps
+
+
+def playback_window(start_ns, end_ns, start_offset=0.0, duration=None):
+    """
+    Return the log-time window [first, stop) [ns] to play of a bag spanning start_ns..end_ns.
+
+    first = start_ns + start_offset; stop = first + duration, or just past end_ns without a
+    duration. start_offset [s] must lie within the bag; duration [s] must be positive.
+    """
+    if start_offset < 0.0:
+        raise BagError(f'--start-offset must be >= 0 s, got {start_offset}')
+    if duration is not None and duration <= 0.0:
+        raise BagError(f'--duration must be > 0 s, got {duration}')
+    first = start_ns + int(round(start_offset * NANOSECONDS_PER_SECOND))
+    if first > end_ns:
+        raise BagError(f'--start-offset {start_offset} s is beyond the end of the bag '
+                       f'({(end_ns - start_ns) / NANOSECONDS_PER_SECOND:.3f} s long)')
+    if duration is None:
+        return first, end_ns + 1
+    return first, first + int(round(duration * NANOSECONDS_PER_SECOND))
+
+
+def wall_offset(log_time_ns, window_start_ns, rate):
+    """Return when [s after the start of playback] a message is due at a rate factor > 0."""
+    return (log_time_ns - window_start_ns) / NANOSECONDS_PER_SECOND / rate
