@@ -95,11 +95,17 @@ GROUND_TRUTH_PAD_CONTACT = Topic('ground_truth/pad_contact', Bool, SENSOR_QOS, p
 # Tool-centre pose and twist in the world frame, from the simulator (evaluation only).
 GROUND_TRUTH_TOOL = Topic('ground_truth/tool', Odometry, SENSOR_QOS, per_arm=True)
 DIAGNOSTICS = Topic('/diagnostics', DiagnosticArray, SENSOR_QOS)
+# bag_record's matched publishers per recorded topic (one status, values topic -> count): a
+# recorded lockstep run starts once the recorder has matched every publisher the bridge sees.
+RECORDER_STATUS = Topic('/bag_record/matched', DiagnosticArray, QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
 ALL_TOPICS = (
     CLOCK, JOINT_STATES, TORQUE_COMMAND, FT_WRENCH, MOCAP_OBJECT_POSE, OBJECT_STATE, DS_COMMAND,
     CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, GROUND_TRUTH_OBJECT,
     GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_PAD_CONTACT, GROUND_TRUTH_TOOL, DIAGNOSTICS,
+    RECORDER_STATUS,
 )
 
 # Services of the bridge (std_srvs/Trigger) and their names.

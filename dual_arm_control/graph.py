@@ -74,6 +74,7 @@ def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None, r
     awaited = [spec.full_name for spec in GRAPHS[graph]() if spec.name != 'sim_bridge']
     if record:
         parameters['sim_bridge']['lockstep_wait_for_subscribers'] = True
+        parameters['sim_bridge']['lockstep_wait_for_recorder'] = True
         awaited.append(RECORDER_NODE)
     if mode == 'lockstep':
         parameters['sim_bridge']['lockstep_wait_for_nodes'] = awaited

@@ -160,6 +160,9 @@ class SimBridge(Node):
         self._awaited_tracker_ns = set()
         self._wait_for_subscribers = (self.mode == 'lockstep' and self.get_parameter(
             'lockstep_wait_for_subscribers').value)
+        self._wait_for_recorder = (self.mode == 'lockstep' and self.get_parameter(
+            'lockstep_wait_for_recorder').value)
+        self._recorder_matched = None
         self._awaited_nodes = [name for name in
                                self.get_parameter('lockstep_wait_for_nodes').value
                                if name and self.mode == 'lockstep']
@@ -188,7 +191,7 @@ class SimBridge(Node):
         self._create_interfaces()
         self._started = False
         self._subscribed_wall = None
-        if not (self._wait_for_subscribers or self._awaited_nodes):
+        if not (self._wait_for_subscribers or self._awaited_nodes or self._wait_for_recorder):
             self._start_episode()
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         if self.mode == 'lockstep':
@@ -254,6 +257,12 @@ class SimBridge(Node):
                         'publishes has a subscriber (a recorder that must see every cycle)',
                         read_only=True))
         self.declare_parameter(
+            'lockstep_wait_for_recorder', False,
+            _descriptor('lockstep: publish the first state only once bag_record reports (on '
+                        f'{contract.RECORDER_STATUS.name}) that it matched every publisher of '
+                        'its topics the bridge sees, so a recording loses nothing',
+                        read_only=True))
+        self.declare_parameter(
             'lockstep_wait_for_nodes', [''],
             _descriptor('lockstep: publish the first state only once these nodes (full '
                         'names, e.g. /ds_motion_generator, /bag_record) and their publishers '
@@ -269,6 +278,10 @@ class SimBridge(Node):
         self._clock_stream = _Stream(self, contract.CLOCK)
         self._mocap = _Stream(self, contract.MOCAP_OBJECT_POSE, frame_id=contract.WORLD_FRAME)
         self._diagnostics_pub = create_topic_publisher(self, contract.DIAGNOSTICS)
+        if self._wait_for_recorder:
+            self.create_subscription(
+                contract.RECORDER_STATUS.msg_type, contract.RECORDER_STATUS.name,
+                self._on_recorder_status, contract.RECORDER_STATUS.qos)
         self._object_truth = _Stream(self, contract.GROUND_TRUTH_OBJECT,
                                      frame_id=contract.WORLD_FRAME, child_frame_id='object')
         self._joint_states, self._ft, self._tool_truth = {}, {}, {}
@@ -350,9 +363,11 @@ class SimBridge(Node):
         return all(answer is not None for answer in self._answers.values())
 
     def _graph_ready(self):
-        """Return True once the streams have subscribers (if awaited) and the nodes publish."""
+        """Return True once the awaited subscribers, recorder and nodes are all there."""
         if self._wait_for_subscribers and not all(
                 s.publisher.get_subscription_count() > 0 for s in self._streams()):
+            return False
+        if self._wait_for_recorder and not self._recorder_ready():
             return False
         present = {f'{namespace.rstrip("/")}/{name}'
                    for name, namespace in self.get_node_names_and_namespaces()}
@@ -366,6 +381,21 @@ class SimBridge(Node):
             except NodeNameNonExistentError:
                 return False
         return True
+
+    def _on_recorder_status(self, msg):
+        """Keep the recorder's matched publishers per topic."""
+        try:
+            self._recorder_matched = {value.key: int(value.value)
+                                      for status in msg.status for value in status.values}
+        except ValueError:
+            self._recorder_matched = None
+
+    def _recorder_ready(self):
+        """Return True once the recorder matched every publisher the bridge sees."""
+        if self._recorder_matched is None:
+            return False
+        return all(self.count_publishers(topic) <= matched
+                   for topic, matched in self._recorder_matched.items())
 
     def _streams(self):
         """Return every state and ground-truth stream the bridge publishes."""

@@ -16,6 +16,7 @@ import re
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.writer import available_compressions, BagWriter, DEFAULT_CHUNK_SIZE
@@ -25,6 +26,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.utilities import remove_ros_args
 
 DISCOVERY_PERIOD = 0.5
+# Wall time between checks of the matched publishers (published on a change).
+STATUS_PERIOD = 0.1
 DEFAULT_EXTRA_TOPICS = ('/parameter_events', '/rosout')
 # On stop: take delivered messages until none came for DRAIN_IDLE, at most DRAIN_LIMIT [s].
 DRAIN_IDLE = 0.5
@@ -105,6 +108,11 @@ class BagRecorder(Node):
                 self._subscribe(name, topic.msg_type, [topic.publisher_qos], topic.qos)
         self._discover()
         self.create_timer(DISCOVERY_PERIOD, self._discover)
+        self._status_pub = self.create_publisher(
+            contract.RECORDER_STATUS.msg_type, contract.RECORDER_STATUS.name,
+            contract.RECORDER_STATUS.qos)
+        self._matched = None
+        self.create_timer(STATUS_PERIOD, self._publish_matched)
         self.get_logger().info(f'recording {len(self._recorded)} topics into '
                                f'{options.output} ({options.compression})')
 
@@ -144,6 +152,20 @@ class BagRecorder(Node):
                 self.get_logger().warning(f'not recording {name}: {error}')
                 continue
             self.get_logger().info(f'recording {name} ({types[0]})')
+
+    def _publish_matched(self):
+        """Publish the matched publishers per recorded topic when they changed."""
+        matched = {name: sub.get_publisher_count() for name, sub in self._recorded.items()}
+        if matched == self._matched:
+            return
+        self._matched = matched
+        status = DiagnosticStatus(
+            level=DiagnosticStatus.OK, name='bag_record', message='matched publishers',
+            values=[KeyValue(key=name, value=str(count))
+                    for name, count in sorted(matched.items())])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._status_pub.publish(msg)
 
     def drain(self, executor):
         """Take the messages already delivered until none came for DRAIN_IDLE (on stop)."""
