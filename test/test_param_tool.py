@@ -20,9 +20,9 @@ from dual_arm_control.tools.param import (coerce_value, describe_value, dump_tex
                                           flat_parameters, main, nested_parameters,
                                           parameter_changes, parameter_message,
                                           parameters_for_node, parse_value, read_params_file)
-from graph_helpers import ProcessGroup, ros_environment
+from graph_helpers import GraphProbe, ProcessGroup, ros_environment
 import pytest
-from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.msg import ParameterEvent, ParameterType, ParameterValue
 from rosbags.highlevel import AnyReader
 import yaml
 
@@ -296,3 +296,21 @@ def test_a_set_is_recorded_on_parameter_events_in_a_bag(motion_node, tmp_path):
     found = [change for change in parameter_changes(bag) if change.name == 'speed.time_constant']
     assert [(c.node, c.value, c.kind) for c in found] == [(NODE, 0.08, 'changed')]
     assert found[0].stamp_ns > 0 and found[0].log_time_ns > 0
+
+    replay_domain = random.SystemRandom().randint(1, 200)
+    probe = GraphProbe(replay_domain, 'parameter_events_probe')
+    replayed = []
+    probe.node.create_subscription(
+        ParameterEvent, '/parameter_events',
+        lambda event: replayed.extend((event.node, p.name, p.value.double_value)
+                                      for p in event.changed_parameters), 100)
+    try:
+        player = subprocess.Popen(
+            [str(SCRIPTS / 'bag_play'), str(bag), '--wait-for-subscribers'],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+            env=ros_environment(replay_domain), text=True)
+        assert probe.spin_until(lambda: (NODE, 'speed.time_constant', 0.08) in replayed,
+                                STARTUP_TIMEOUT), replayed
+        assert player.wait(timeout=STARTUP_TIMEOUT) == 0, player.stdout.read()
+    finally:
+        probe.close()

@@ -98,7 +98,8 @@ def realtime_run(out, duration):
     while process.poll() is None:
         executor.spin_once(timeout_sec=0.05)
         for pid in child_pids(process.pid):
-            labels.setdefault(pid, _label(pid))
+            if labels.get(pid, str(pid)) == str(pid):
+                labels[pid] = _label(pid)
             seconds = _cpu_seconds(pid)
             if seconds is not None:
                 cpu[pid] = (labels[pid], seconds)
