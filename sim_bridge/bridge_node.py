@@ -453,7 +453,9 @@ class SimBridge(Node):
                 f'lockstep: waiting for the object tracker to answer the mocap samples stamped '
                 f'{sorted(s * 1e-9 for s in self._awaited_tracker_ns)} s'))
             return
-        self._publish_joint_states(only_unanswered=True)
+        # Both arms again: the DS and the wrench QP re-answer a tick only with a complete set,
+        # and a controller that missed their first answer needs it (extra commands are ignored).
+        self._publish_joint_states()
         self._publish_ft(time_msg(self._awaited_ns))
         if time.monotonic() - self._state_published_wall < WAITING_WARNING_DELAY:
             return
@@ -557,14 +559,12 @@ class SimBridge(Node):
             _set_vector(ft.msg.wrench.torque, torque)
             ft.publish()
 
-    def _publish_joint_states(self, only_unanswered=False):
+    def _publish_joint_states(self):
         """Publish /clock and the joint states of the awaited cycle (again)."""
         stamp = time_msg(self._awaited_ns)
         self._clock_stream.msg.clock = stamp
         self._clock_stream.publish()
         for arm in contract.ARMS:
-            if only_unanswered and self._answers[arm] is not None:
-                continue
             sample = self.twin.joint_state(arm)
             joint_states = self._joint_states[arm]
             joint_states.msg.header.stamp = stamp

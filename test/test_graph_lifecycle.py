@@ -145,3 +145,43 @@ def test_live_impact_speed_changes_the_measured_impact(tmp_path, ros_domain):
     finally:
         probe.close()
         print(stop(process)[-3000:])
+
+
+def test_a_controller_that_missed_the_first_tick_catches_up(tmp_path, ros_domain):
+    """
+    Lockstep recovers when a controller joins after the DS and QP answered the first tick.
+
+    The bridge starts without waiting for the graph; the right controller starts only once the
+    bridge reports that it waits for it. The bridge then republishes the cycle's whole state,
+    the DS and the wrench QP answer the repeated tick again, and the run completes.
+    """
+    from dual_arm_control.graph import full_graph, run_parameters
+    from dual_arm_control.resources import config_path
+    from graph_helpers import parameter_arguments, ProcessGroup
+    scenario = config_path('scenarios', 'paper_toss.yaml')
+    parameters = run_parameters('full', scenario, 'lockstep')
+    parameters['sim_bridge'].pop('lockstep_wait_for_nodes')
+    parameters['sim_bridge']['duration'] = 0.1
+    specs = {spec.label: spec for spec in full_graph()}
+
+    def ros_arguments(spec):
+        arguments = ['-r', f'__node:={spec.name}']
+        if spec.namespace:
+            arguments += ['-r', f'__ns:={spec.namespace}']
+        for param_file in spec.param_files:
+            arguments += ['--params-file', str(config_path(param_file))]
+        return arguments + parameter_arguments(
+            **dict(spec.parameters, **parameters.get(spec.name, {})))
+
+    with ProcessGroup(tmp_path, ros_domain) as group:
+        for label, spec in specs.items():
+            if label != 'right_passive_controller':
+                group.start(label, spec.executable, ros_arguments(spec))
+        deadline = time.monotonic() + 60.0
+        while "stamped 0 s from ['right']" not in group.log('sim_bridge'):
+            assert time.monotonic() < deadline and group.poll('sim_bridge') is None, (
+                group.log('sim_bridge'))
+            time.sleep(0.2)
+        spec = specs['right_passive_controller']
+        group.start('right_passive_controller', spec.executable, ros_arguments(spec))
+        assert group.wait('sim_bridge', 60.0) == 0, group.log('sim_bridge')
