@@ -15,6 +15,12 @@ EXECUTABLES = {
     'dual_arm_bringup': 'dual_arm_control.bringup:main',
     'bag_record': 'dual_arm_control.nodes.bag_record:main',
     'bag_info': 'dual_arm_control.bags.info:main',
+    'bag_play': 'dual_arm_control.nodes.bag_play:main',
+    'dual_arm_param': 'dual_arm_control.tools.param:main',
+    'dual_arm_render': 'dual_arm_control.tools.render:main',
+    'dual_arm_eval': 'dual_arm_control.evaluation.trials:main',
+    'dual_arm_experiment': 'dual_arm_control.evaluation.experiments:main',
+    'dual_arm_bench': 'dual_arm_control.benchmarks.bench:main',
 }
 
 
