@@ -1,7 +1,5 @@
 """Plots of the paper experiments (Figures 6-10 analogues), PNG through matplotlib's Agg."""
 
-from pathlib import Path
-
 from dual_arm_control.contract import ARMS
 from dual_arm_control.evaluation import plots as episode_plots
 import matplotlib
@@ -12,14 +10,6 @@ import numpy as np  # noqa: E402, I100
 TASK_COLOURS = {'pick_and_place': 'tab:blue', 'pick_and_toss': 'tab:red'}
 TASK_LABELS = {'pick_and_place': 'pick-and-place', 'pick_and_toss': 'pick-and-toss'}
 CLOSEUP_MARGIN = 0.25
-
-
-def _save(figure, path):
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
 
 
 def _mark(axis, events):
@@ -60,7 +50,7 @@ def figure6_closeup(data, events, path):
             _mark(axis, events)
             axis.grid(True, alpha=0.3)
             axis.legend(fontsize=7, loc='upper right')
-    _save(figure, path)
+    episode_plots.save_figure(figure, path, dpi=100)
 
 
 def figure7_object_motion(data, events, path):
@@ -104,7 +94,7 @@ def figure8_top_view(grid, joint, toss_mask, added, hull, landings, cell, path):
     axis.set_ylabel('y [m]')
     axis.legend(fontsize=8, loc='upper right')
     axis.grid(True, alpha=0.3)
-    _save(figure, path)
+    episode_plots.save_figure(figure, path, dpi=100)
 
 
 def figure8_trajectories(flights, reachable, cell, path, z_band, points_per_arm=2500):
@@ -135,7 +125,7 @@ def figure8_trajectories(flights, reachable, cell, path, z_band, points_per_arm=
     axis.set_zlabel('z [m]')
     axis.view_init(elev=30, azim=-120)
     axis.legend(fontsize=7, loc='upper left')
-    _save(figure, path)
+    episode_plots.save_figure(figure, path, dpi=100)
 
 
 def _speed_norms(series, arm):
@@ -156,7 +146,7 @@ def figure9_speeds(series, path, speed):
         axis.grid(True, alpha=0.3)
         axis.legend(fontsize=8)
     axes[-1].set_xlabel('time from episode start [s]')
-    _save(figure, path)
+    episode_plots.save_figure(figure, path, dpi=100)
 
 
 def figure9_energy(series, path, speed, cumulative_energy):
@@ -175,7 +165,7 @@ def figure9_energy(series, path, speed, cumulative_energy):
         axis.grid(True, alpha=0.3)
         axis.legend(fontsize=8)
     axes[0].set_ylabel('energy |tau . dq| integrated [J]')
-    _save(figure, path)
+    episode_plots.save_figure(figure, path, dpi=100)
 
 
 def figure10_bars(summary, path):
@@ -199,7 +189,7 @@ def figure10_bars(summary, path):
         axis.set_title(title)
         axis.grid(True, axis='y', alpha=0.3)
         axis.legend(fontsize=8)
-    _save(figure, path)
+    episode_plots.save_figure(figure, path, dpi=100)
 
 
 def landing_errors(rows, cell, path):
@@ -234,4 +224,4 @@ def landing_errors(rows, cell, path):
                          rotation=60, fontsize=7)
     bars.set_ylabel('landing error [mm]')
     bars.grid(True, axis='y', alpha=0.3)
-    _save(figure, path)
+    episode_plots.save_figure(figure, path, dpi=100)

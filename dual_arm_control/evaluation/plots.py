@@ -39,7 +39,7 @@ def plot_tool_speeds(data, events, path):
     axes[1].set_xlabel('sim time [s]')
     axes[0].legend(loc='upper right', fontsize=8)
     axes[1].legend(loc='upper right', fontsize=7, ncol=2)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def plot_object_motion(data, events, path):
@@ -59,7 +59,7 @@ def plot_object_motion(data, events, path):
         axis.grid(True, alpha=0.3)
     axes[1].legend(loc='upper right', fontsize=8)
     axes[2].set_xlabel('sim time [s]')
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def plot_trajectories_3d(data, path):
@@ -75,7 +75,7 @@ def plot_trajectories_3d(data, path):
     axis.set_ylabel('y [m]')
     axis.set_zlabel('z [m]')
     axis.legend(fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def plot_tool_drift(data, path):
@@ -90,13 +90,13 @@ def plot_tool_drift(data, path):
     axis.set_ylabel('tool drift [mm]')
     axis.grid(True, alpha=0.3)
     axis.legend()
-    _save(figure, path)
+    save_figure(figure, path)
 
 
-def _save(figure, path):
-    """Write the figure to path and free it."""
+def save_figure(figure, path, dpi=110):
+    """Write the figure to path (folders created) and free it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.tight_layout()
-    figure.savefig(path, dpi=110)
+    figure.savefig(path, dpi=dpi)
     plt.close(figure)

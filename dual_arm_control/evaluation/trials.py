@@ -29,6 +29,7 @@ from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, episode_metr
                                                  LANDING_LIMIT, PLACE_LIMIT, PLACE_SPEED_LIMIT,
                                                  predicted_landing, RELEASE_POSITION_LIMIT,
                                                  RELEASE_VELOCITY_LIMIT, SLIP_LIMIT)
+from dual_arm_control.evaluation.plots import save_figure
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.scenario import (load_scenario, PLACE_TASKS, sample_trial,
                                        scenario_document, scenario_path, TOSS_TASKS)
@@ -331,12 +332,6 @@ def _histogram(axis, values, label, scale=1.0, limit=None, desired=None):
         axis.legend(fontsize=8)
 
 
-def _save(figure, path):
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
-
-
 def plot_batch(outcomes, trials, scenario, out_dir, cell):
     """Write the batch plots into out_dir; return the names of the files written."""
     out_dir = Path(out_dir)
@@ -345,7 +340,7 @@ def plot_batch(outcomes, trials, scenario, out_dir, cell):
     if landing_errors:
         figure, axis = plt.subplots(figsize=(6, 4))
         _histogram(axis, landing_errors, 'landing error [cm]', 100.0, LANDING_LIMIT)
-        _save(figure, out_dir / 'landing_error.png')
+        save_figure(figure, out_dir / 'landing_error.png')
         written.append('landing_error.png')
     speeds = {arm: _values(outcomes, f'impact_speed_along_direction_{arm}')
               for arm in ('left', 'right')}
@@ -355,7 +350,7 @@ def plot_batch(outcomes, trials, scenario, out_dir, cell):
             if values:
                 _histogram(axis, values, f'{arm} impact speed along the impact direction [m/s]',
                            desired=scenario.speeds.impact)
-        _save(figure, out_dir / 'impact_speeds.png')
+        save_figure(figure, out_dir / 'impact_speeds.png')
         written.append('impact_speeds.png')
     release = {'release_position_error': ('release position error [cm]', 100.0,
                                           RELEASE_POSITION_LIMIT),
@@ -366,7 +361,7 @@ def plot_batch(outcomes, trials, scenario, out_dir, cell):
         for axis, (key, (label, scale, limit)) in zip(axes, release.items()):
             if _values(outcomes, key):
                 _histogram(axis, _values(outcomes, key), label, scale, limit)
-        _save(figure, out_dir / 'release_errors.png')
+        save_figure(figure, out_dir / 'release_errors.png')
         written.append('release_errors.png')
     if _values(outcomes, 'contact_time_gap'):
         _plot_grasp(outcomes, out_dir / 'grasp.png')
@@ -405,7 +400,7 @@ def _plot_landing_positions(outcomes, trials, cell, path):
     axis.set_ylabel('world y [m]')
     axis.grid(True, alpha=0.3)
     axis.legend(fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def _plot_sensitivity(outcomes, drawn, path):
@@ -435,7 +430,7 @@ def _plot_sensitivity(outcomes, drawn, path):
         row[0].set_ylabel(label)
     for axis, name in zip(axes[-1], names):
         axis.set_xlabel(name)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def _plot_grasp(outcomes, path):
@@ -445,7 +440,7 @@ def _plot_grasp(outcomes, path):
         label, scale, limit = SENSITIVITY_METRICS[key]
         if _values(outcomes, key):
             _histogram(axis, _values(outcomes, key), label, scale, limit)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def parse_arguments(argv=None):

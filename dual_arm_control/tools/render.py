@@ -24,7 +24,9 @@ import sys
 import time
 
 from dual_arm_control import contract
-from dual_arm_control.bags.writer import METADATA_NAME, split_path
+from dual_arm_control.bags import BagError
+from dual_arm_control.bags.reader import bag_files
+from dual_arm_control.bags.writer import METADATA_NAME
 from dual_arm_control.core.exceptions import DualArmControlError, InputError
 from dual_arm_control.nodes.bag_record import message_class
 from dual_arm_control.scenario import load_scenario
@@ -192,14 +194,11 @@ def _stamp(msg):
 
 
 def _bag_files(path):
-    """Return the files of a (possibly split) bag: path, then <stem>_1.mcap, ... that exist."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f'bag {path} does not exist or is not a file')
-    files = [path]
-    while split_path(path, len(files)).is_file():
-        files.append(split_path(path, len(files)))
-    return files
+    """Return the files of a (possibly split) bag or rosbag2 folder; InputError if none."""
+    try:
+        return bag_files(path)
+    except BagError as error:
+        raise InputError(str(error)) from None
 
 
 def _recorded_scenario(files):
