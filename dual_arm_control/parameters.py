@@ -110,6 +110,16 @@ def config_fields(config, prefix=''):
     return leaves
 
 
+def parameter_descriptor(description, read_only=False, floating_range=None, constraints=''):
+    """Return a ParameterDescriptor with an optional closed floating-point range (low, high)."""
+    descriptor = ParameterDescriptor(description=description, read_only=read_only,
+                                     additional_constraints=constraints)
+    if floating_range is not None:
+        descriptor.floating_point_range = [FloatingPointRange(
+            from_value=floating_range[0], to_value=floating_range[1], step=0.0)]
+    return descriptor
+
+
 def _descriptor(leaf):
     """Return the ParameterDescriptor of a leaf: description, and range where numeric."""
     descriptor = ParameterDescriptor(name=leaf.name, description=leaf.description)

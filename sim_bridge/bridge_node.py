@@ -39,10 +39,11 @@ from dual_arm_control.core.geometry import matrix_to_quat_xyzw
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
 from dual_arm_control.nodes.common import (create_topic_publisher, run_node, seconds_to_ns,
                                            stamp_ns, time_msg)
+from dual_arm_control.parameters import parameter_descriptor
 from dual_arm_control.resources import config_path
 from dual_arm_control.scenario import load_scenario
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node, NodeNameNonExistentError
@@ -126,17 +127,6 @@ class ArmCounters:
         return counts
 
 
-def _descriptor(description, read_only=False, floating_range=None, constraints=''):
-    """Return a ParameterDescriptor with an optional closed floating-point range."""
-    descriptor = ParameterDescriptor(description=description, read_only=read_only,
-                                     additional_constraints=constraints)
-    if floating_range is not None:
-        descriptor.floating_point_range = [
-            FloatingPointRange(from_value=floating_range[0], to_value=floating_range[1],
-                               step=0.0)]
-    return descriptor
-
-
 class SimBridge(Node):
     """The bridge node: twin + publishers + command subscriptions + services."""
 
@@ -209,69 +199,65 @@ class SimBridge(Node):
     def _declare_parameters(self):
         """Declare every parameter with its description, range and mutability."""
         self.declare_parameter(
-            'scenario', str(config_path('scenarios', 'hold.yaml')),
-            _descriptor('scenario YAML: cell, object, initial state, seed, perturbations',
-                        read_only=True))
+            'scenario', str(config_path('scenarios', 'hold.yaml')), parameter_descriptor(
+                'scenario YAML: cell, object, initial state, seed, perturbations',
+                read_only=True))
         self.declare_parameter(
-            'mode', 'lockstep',
-            _descriptor('lockstep: advance when every arm answered (deterministic); realtime: '
-                        'paced by the wall clock with the FRI watchdog', read_only=True,
-                        constraints=f'one of {MODES}'))
+            'mode', 'lockstep', parameter_descriptor(
+                'lockstep: advance when every arm answered (deterministic); realtime: paced by '
+                'the wall clock with the FRI watchdog', read_only=True,
+                constraints=f'one of {MODES}'))
         self.declare_parameter(
-            'fri_period', 0.002,
-            _descriptor('FRI cycle: state out, torque command in [s]', read_only=True,
-                        floating_range=(FRI_PERIODS[0], FRI_PERIODS[-1]),
-                        constraints=f'one of {FRI_PERIODS}'))
+            'fri_period', 0.002, parameter_descriptor(
+                'FRI cycle: state out, torque command in [s]', read_only=True,
+                floating_range=(FRI_PERIODS[0], FRI_PERIODS[-1]),
+                constraints=f'one of {FRI_PERIODS}'))
         self.declare_parameter(
-            'duration', 0.0,
-            _descriptor('sim time at which the run ends and the bridge exits 0 [s]; 0 = the '
-                        'duration of the scenario',
-                        floating_range=(0.0, MAX_DURATION)))
+            'duration', 0.0, parameter_descriptor(
+                'sim time at which the run ends and the bridge exits 0 [s]; 0 = the duration of '
+                'the scenario', floating_range=(0.0, MAX_DURATION)))
         self.declare_parameter(
-            'trajectory_log', '',
-            _descriptor('if set: .npz ground-truth trajectory written on exit (empty = none)',
-                        read_only=True))
+            'trajectory_log', '', parameter_descriptor(
+                'if set: .npz ground-truth trajectory written on exit (empty = none)',
+                read_only=True))
         self.declare_parameter(
-            'publish_ground_truth', True,
-            _descriptor('publish /ground_truth/* topics (evaluation only, costs CPU)'))
+            'publish_ground_truth', True, parameter_descriptor(
+                'publish /ground_truth/* topics (evaluation only, costs CPU)'))
         self.declare_parameter(
-            'ground_truth_period', 0.0,
-            _descriptor('sim time between ground-truth messages [s]; 0 = every FRI cycle',
-                        floating_range=(0.0, 1.0)))
+            'ground_truth_period', 0.0, parameter_descriptor(
+                'sim time between ground-truth messages [s]; 0 = every FRI cycle',
+                floating_range=(0.0, 1.0)))
         self.declare_parameter(
-            'object_displacement', [0.0, 0.0, 0.0],
-            _descriptor('displacement [x, y, z] applied by the move_object service [m]',
-                        constraints=f'each component within +-{MAX_OBJECT_DISPLACEMENT} m'))
+            'object_displacement', [0.0, 0.0, 0.0], parameter_descriptor(
+                'displacement [x, y, z] applied by the move_object service [m]',
+                constraints=f'each component within +-{MAX_OBJECT_DISPLACEMENT} m'))
         self.declare_parameter(
-            'lockstep_republish_period', 0.1,
-            _descriptor('lockstep: wall time without answers after which the state is '
-                        'published again [s]', read_only=True, floating_range=(0.01, 10.0)))
+            'lockstep_republish_period', 0.1, parameter_descriptor(
+                'lockstep: wall time without answers after which the state is published again '
+                '[s]', read_only=True, floating_range=(0.01, 10.0)))
         self.declare_parameter(
-            'lockstep_wait_for_tracker', False,
-            _descriptor('lockstep: publish the mocap samples of a cycle first and the rest of '
-                        'the state only after the object tracker answered each of them (an '
-                        '/object/state with the stamp of the sample)', read_only=True))
+            'lockstep_wait_for_tracker', False, parameter_descriptor(
+                'lockstep: publish the mocap samples of a cycle first and the rest of the state '
+                'only after the object tracker answered each of them (an /object/state with the '
+                'stamp of the sample)', read_only=True))
         self.declare_parameter(
-            'lockstep_wait_for_subscribers', False,
-            _descriptor('lockstep: publish the first state only once every topic the bridge '
-                        'publishes has a subscriber (a recorder that must see every cycle)',
-                        read_only=True))
+            'lockstep_wait_for_subscribers', False, parameter_descriptor(
+                'lockstep: publish the first state only once every topic the bridge publishes '
+                'has a subscriber (a recorder that must see every cycle)', read_only=True))
         self.declare_parameter(
-            'lockstep_wait_for_recorder', False,
-            _descriptor('lockstep: publish the first state only once bag_record reports (on '
-                        f'{contract.RECORDER_STATUS.name}) that it matched every publisher of '
-                        'its topics the bridge sees, so a recording loses nothing',
-                        read_only=True))
+            'lockstep_wait_for_recorder', False, parameter_descriptor(
+                'lockstep: publish the first state only once bag_record reports (on '
+                f'{contract.RECORDER_STATUS.name}) that it matched every publisher of its topics '
+                'the bridge sees, so a recording loses nothing', read_only=True))
         self.declare_parameter(
-            'lockstep_wait_for_nodes', [''],
-            _descriptor('lockstep: publish the first state only once these nodes (full '
-                        'names, e.g. /ds_motion_generator, /bag_record) and their publishers '
-                        'are in the graph, plus a settling second, so every node sees the run '
-                        "from its first cycle ('' entries are ignored)", read_only=True))
+            'lockstep_wait_for_nodes', [''], parameter_descriptor(
+                'lockstep: publish the first state only once these nodes (full names, e.g. '
+                '/ds_motion_generator, /bag_record) and their publishers are in the graph, plus '
+                "a settling second, so every node sees the run from its first cycle ('' entries "
+                'are ignored)', read_only=True))
         self.declare_parameter(
-            'diagnostics_period', 1.0,
-            _descriptor('sim time between /diagnostics messages [s]',
-                        floating_range=(0.01, 100.0)))
+            'diagnostics_period', 1.0, parameter_descriptor(
+                'sim time between /diagnostics messages [s]', floating_range=(0.01, 100.0)))
 
     def _create_interfaces(self):
         """Create publishers (each with its reused message), subscriptions and services."""

@@ -14,8 +14,9 @@ from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError
 from dual_arm_control.description.cell import arm_model
 from dual_arm_control.nodes.common import create_topic_publisher, run_node
+from dual_arm_control.parameters import parameter_descriptor
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -42,10 +43,9 @@ class GravityCompController(Node):
         self.declare_parameter('mode', 'gravity', ParameterDescriptor(
             description='gravity: gravity torque - damping * velocity; zero: no torque',
             additional_constraints=f'one of {MODES}'))
-        self.declare_parameter('joint_damping', 2.0, ParameterDescriptor(
-            description='viscous joint damping added to the gravity torque [N m s/rad]',
-            floating_point_range=[FloatingPointRange(from_value=0.0,
-                                                     to_value=MAX_JOINT_DAMPING, step=0.0)]))
+        self.declare_parameter('joint_damping', 2.0, parameter_descriptor(
+            'viscous joint damping added to the gravity torque [N m s/rad]',
+            floating_range=(0.0, MAX_JOINT_DAMPING)))
         self.arm = self.get_parameter('arm').value
         self.mode = self.get_parameter('mode').value
         self.joint_damping = self.get_parameter('joint_damping').value

@@ -17,9 +17,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, quat_xyzw_to_matrix
+from dual_arm_control.parameters import parameter_descriptor
 from dual_arm_control.pipeline import NANOSECONDS_PER_SECOND, seconds_to_ns, TickSchedule
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
@@ -273,11 +273,9 @@ class CounterDiagnostics:
         self._node = node
         low, high = DIAGNOSTICS_PERIOD_RANGE
         node.declare_parameter('diagnostics_period', DEFAULT_DIAGNOSTICS_PERIOD,
-                               ParameterDescriptor(
-                                   description='sim time between two /diagnostics messages of '
-                                               'this node [s]',
-                                   floating_point_range=[FloatingPointRange(
-                                       from_value=low, to_value=high, step=0.0)]))
+                               parameter_descriptor('sim time between two /diagnostics '
+                                                    'messages of this node [s]',
+                                                    floating_range=(low, high)))
         self._publisher = create_topic_publisher(node, contract.DIAGNOSTICS)
         self._last_ns = None
         self.name = node.get_fully_qualified_name().lstrip('/')

@@ -34,9 +34,9 @@ from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publ
                                            joint_state_arrays, odometry_arrays, RefusalCounter,
                                            run_node, seconds_to_ns, stamp_ns,
                                            TickSchedule, time_msg, wrench_array)
-from dual_arm_control.parameters import ConfigParameters
+from dual_arm_control.parameters import ConfigParameters, parameter_descriptor
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 FRI_PERIODS = (0.001, 0.002, 0.005)
@@ -72,16 +72,6 @@ def parameter_problem(name, value, current):
     except ConfigError as error:
         return str(error)
     return None
-
-
-def _descriptor(description, read_only=False, value_range=None, constraints=''):
-    """Return a ParameterDescriptor with an optional closed floating-point range."""
-    descriptor = ParameterDescriptor(description=description, read_only=read_only,
-                                     additional_constraints=constraints)
-    if value_range is not None:
-        descriptor.floating_point_range = [FloatingPointRange(
-            from_value=value_range[0], to_value=value_range[1], step=0.0)]
-    return descriptor
 
 
 class PassiveControllerNode(Node):
@@ -144,22 +134,22 @@ class PassiveControllerNode(Node):
 
     def _declare_parameters(self):
         """Declare the node parameters (the core config is declared by ConfigParameters)."""
-        self.declare_parameter('arm', '', _descriptor(
+        self.declare_parameter('arm', '', parameter_descriptor(
             'which arm this controller drives', read_only=True,
             constraints=f'one of {contract.ARMS}'))
-        self.declare_parameter('lockstep', True, _descriptor(
+        self.declare_parameter('lockstep', True, parameter_descriptor(
             'true: on tick cycles wait for ds_command and contact_wrench of the same stamp '
             '(deterministic, with the lockstep bridge); false: never wait, use the newest',
             read_only=True))
-        self.declare_parameter('fri_period', 0.002, _descriptor(
+        self.declare_parameter('fri_period', 0.002, parameter_descriptor(
             'FRI cycle of the joint states [s]', read_only=True,
-            value_range=(FRI_PERIODS[0], FRI_PERIODS[-1]), constraints=f'one of {FRI_PERIODS}'))
-        self.declare_parameter('ds_period', 0.005, _descriptor(
+            floating_range=(FRI_PERIODS[0], FRI_PERIODS[-1]), constraints=f'one of {FRI_PERIODS}'))
+        self.declare_parameter('ds_period', 0.005, parameter_descriptor(
             'period of the DS and wrench QP ticks on the FRI cycles (TickSchedule) [s]',
-            read_only=True, value_range=DS_PERIOD_RANGE, constraints='>= fri_period'))
-        self.declare_parameter('command_timeout', 0.05, _descriptor(
+            read_only=True, floating_range=DS_PERIOD_RANGE, constraints='>= fri_period'))
+        self.declare_parameter('command_timeout', 0.05, parameter_descriptor(
             'a ds_command or contact_wrench further than this from the cycle is stale: hold '
-            'torque / no wrench [s, sim time]', value_range=(0.0, MAX_COMMAND_TIMEOUT),
+            'torque / no wrench [s, sim time]', floating_range=(0.0, MAX_COMMAND_TIMEOUT),
             constraints='> ds_period + fri_period'))
 
     def _validate_parameters(self, parameters):

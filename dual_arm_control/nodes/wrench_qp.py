@@ -30,12 +30,12 @@ from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publ
                                            odometry_arrays, RefusalCounter,
                                            run_node, set_wrench, stamp_ns, TickSchedule, time_msg,
                                            vector3)
-from dual_arm_control.parameters import ConfigParameters
+from dual_arm_control.parameters import ConfigParameters, parameter_descriptor
 from dual_arm_control.pipeline import (GRASPING_PHASES, object_state_at, WrenchDistributor,
                                        WrenchDistributorConfig)
 from dual_arm_control.scenario import load_scenario
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 
 DEFAULT_OBJECT = 'paper_cube'
@@ -134,10 +134,8 @@ class WrenchQPNode(Node):
                         f'{DEFAULT_OBJECT}', read_only=True))
         scenario = self.get_parameter('scenario').value
         box = load_scenario(scenario).object if scenario else object_spec(DEFAULT_OBJECT)
-        self.declare_parameter('object_mass', float(box.mass), ParameterDescriptor(
-            description='mass of the grasped box [kg]',
-            floating_point_range=[FloatingPointRange(from_value=MASS_RANGE[0],
-                                                     to_value=MASS_RANGE[1], step=0.0)]))
+        self.declare_parameter('object_mass', float(box.mass), parameter_descriptor(
+            'mass of the grasped box [kg]', floating_range=MASS_RANGE))
         self.declare_parameter('object_size', [float(s) for s in box.size], ParameterDescriptor(
             description='edge lengths of the box along object x, y (squeeze axis), z [m]',
             additional_constraints=f'3 lengths in (0, {MAX_OBJECT_EDGE:g}] m'))
