@@ -18,7 +18,6 @@ files <stem>_N.mcap) or a rosbag2 folder.
 
 import argparse
 from collections import deque
-import signal
 import sys
 import time
 
@@ -28,6 +27,7 @@ from dual_arm_control.bags.reader import (BagReader, parse_remaps, playback_wind
 from dual_arm_control.bags.schema import first_field_type, HEADER_TYPE
 from dual_arm_control.bags.writer import header_stamp_ns
 from dual_arm_control.nodes.bag_record import message_class
+from dual_arm_control.nodes.common import StopRequest
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
@@ -212,8 +212,9 @@ class PlaybackStats:
 class BagPlayer(Node):
     """Publishers for the played topics and, in lockstep, subscriptions to the waited outputs."""
 
-    def __init__(self, reader, playback, options):
+    def __init__(self, reader, playback, options, stop):
         super().__init__('bag_play')
+        self._stop = stop
         self._reader = reader
         self._playback = playback
         self._options = options
@@ -243,15 +244,10 @@ class BagPlayer(Node):
         self._executor = EventsExecutor(context=self.context)
         self._executor.add_node(self)
         self.stats = PlaybackStats()
-        self.stop_requested = False
-
-    def request_stop(self, signum=None, frame=None):
-        """Stop at the next message boundary (SIGINT/SIGTERM handler)."""
-        self.stop_requested = True
 
     def running(self):
         """Return True while playback may go on (no stop request, rclpy up)."""
-        return not self.stop_requested and rclpy.ok(context=self.context)
+        return not self._stop.requested and rclpy.ok(context=self.context)
 
     def close(self):
         """Leave the executor and destroy the node."""
@@ -458,12 +454,9 @@ def main(argv=None):
     # its summary) instead of rclpy shutting the context down under a publish call.
     rclpy.init(args=argv[:1] + ros_arguments, signal_handler_options=SignalHandlerOptions.NO)
     player = None
-    previous_handlers = {signum: signal.getsignal(signum)
-                         for signum in (signal.SIGINT, signal.SIGTERM)}
+    stop = StopRequest()
     try:
-        player = BagPlayer(reader, playback, options)
-        for signum in previous_handlers:
-            signal.signal(signum, player.request_stop)
+        player = BagPlayer(reader, playback, options, stop)
         if options.lockstep or options.wait_for_subscribers:
             unmatched = player.wait_for_graph() if player.running() else []
             missing = [name for name in unmatched if name in playback.wait_names.values()]
@@ -483,8 +476,7 @@ def main(argv=None):
         print(f'bag_play: {error}', file=sys.stderr)
         return 2
     finally:
-        for signum, handler in previous_handlers.items():
-            signal.signal(signum, handler)
+        stop.restore()
         if player is not None:
             player.close()
         rclpy.try_shutdown()

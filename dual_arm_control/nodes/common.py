@@ -205,16 +205,28 @@ def flush_publishers(node, timeout=FLUSH_TIMEOUT):
     return acknowledged
 
 
-class _StopRequest:
-    """SIGINT/SIGTERM set a flag, so a stopping node can still flush (rclpy stays up)."""
+class StopRequest:
+    """
+    SIGINT/SIGTERM set a flag (with rclpy's own handlers off), until restore().
+
+    So a stopping process can still finish its work with rclpy up: flush, drain, print.
+    """
 
     def __init__(self):
         self.requested = False
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, self._request)
+        self._previous = {signum: signal.getsignal(signum)
+                          for signum in (signal.SIGINT, signal.SIGTERM)}
+        for signum in self._previous:
+            signal.signal(signum, self.request)
 
-    def _request(self, signum, frame):
+    def request(self, signum=None, frame=None):
+        """Ask the process to stop (the signal handler)."""
         self.requested = True
+
+    def restore(self):
+        """Put back the signal handlers that were there before."""
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
 
 
 def run_node(node_factory, name, args=None, drain=False, on_exit=None):
@@ -230,12 +242,13 @@ def run_node(node_factory, name, args=None, drain=False, on_exit=None):
     code (0 otherwise).
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = _StopRequest()
+    stop = StopRequest()
     try:
         node = node_factory()
     except (DualArmControlError, rclpy.exceptions.ParameterException) as error:
         rclpy.logging.get_logger(name).fatal(f'cannot start: {error}')
         rclpy.try_shutdown()
+        stop.restore()
         return 2
     executor = EventsExecutor()
     executor.add_node(node)
@@ -257,6 +270,7 @@ def run_node(node_factory, name, args=None, drain=False, on_exit=None):
         executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown()
+        stop.restore()
     return status
 
 
