@@ -20,7 +20,8 @@ import sys
 import tempfile
 import time
 
-from dual_arm_control.benchmarks.graph_bench import lockstep_real_time_factor, realtime_run
+from dual_arm_control.benchmarks.graph_bench import (DS_PERIOD, lockstep_real_time_factor,
+                                                     realtime_run)
 from dual_arm_control.inprocess import run_episode, StageTimer
 from dual_arm_control.resources import config_path
 from dual_arm_control.scenario import load_scenario
@@ -87,7 +88,7 @@ def _print_realtime(result, duration):
           f'{counters.get("late_cycles", 0)} late FRI cycles of {cycles} '
           f'({100.0 * counters.get("late_cycles", 0) / cycles:.1f} %), watchdog holds '
           f'{counters.get("watchdog_hold_count", 0)}')
-    expected = duration / 0.005
+    expected = duration / DS_PERIOD
     gap = result['ds_gap_p99_ms']
     print(f'  DS ticks seen {result["ds_ticks"]} of {expected:.0f}, gaps > 9 ms '
           f'{result["ds_late_ticks"]}, p99 gap {gap if gap is None else round(gap, 1)} ms')

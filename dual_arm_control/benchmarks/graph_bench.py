@@ -1,22 +1,18 @@
 """
-Benchmark of the whole node graph on this machine (prints numbers, asserts nothing).
+Measurements of the whole node graph on this machine, run by `dual_arm_bench`.
 
 1. Lockstep real-time factor of the full graph on the paper_toss episode (sim s / wall s).
-2. Realtime mode for DURATION sim seconds: late FRI cycles (500 Hz) and watchdog holds counted
+2. Realtime mode for a given sim duration: late FRI cycles (500 Hz) and watchdog holds counted
    by the bridge, DS ticks (200 Hz) and their wall-clock gaps seen on /dual_arm/phase, and the
    CPU share of every process.
-
-Run: python -m dual_arm_control.benchmarks.graph_bench [--duration 60]
 """
 
-import argparse
 import json
 import os
 from pathlib import Path
 import random
 import subprocess
 import sys
-import tempfile
 import time
 
 from dual_arm_control import contract
@@ -116,31 +112,3 @@ def realtime_run(out, duration):
             'ds_late_ticks': int(np.sum(gaps > 1.5 * DS_PERIOD * 1.2)),
             'ds_gap_p99_ms': float(np.percentile(gaps, 99) * 1e3) if gaps.size else None,
             'cpu': dict(cpu.values())}
-
-
-def main(argv=None):
-    """Run both benchmarks and print the numbers."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    parser.add_argument('--duration', type=float, default=60.0,
-                        help='realtime run length [sim s]')
-    args = parser.parse_args(argv)
-    with tempfile.TemporaryDirectory() as directory:
-        sim, wall, code = lockstep_real_time_factor(Path(directory) / 'lockstep')
-        print(f'lockstep, full graph, paper_toss: {sim:.2f} s sim in {wall:.2f} s wall, '
-              f'real-time factor {sim / wall:.2f} (exit {code})')
-        out = Path(directory) / 'realtime'
-        out.mkdir()
-        result = realtime_run(out, args.duration)
-        print(f'realtime, full graph, {args.duration:g} s sim in {result["wall"]:.1f} s wall')
-        print(f'  bridge counters: {result["counters"]}')
-        expected = args.duration / DS_PERIOD
-        print(f'  DS ticks seen: {result["ds_ticks"]} of {expected:.0f}; wall gaps > 9 ms: '
-              f'{result["ds_late_ticks"]}; p99 gap {result["ds_gap_p99_ms"]:.1f} ms')
-        for label, seconds in sorted(result['cpu'].items()):
-            print(f'  CPU {label:28s} {seconds:6.1f} s = {100 * seconds / result["wall"]:5.1f} '
-                  f'% of one core')
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())
