@@ -8,7 +8,6 @@ lockstep into a fresh ds_motion_generator in another domain and requires its out
 the recorded ones, field by field, for every recorded DS tick.
 """
 
-import os
 from pathlib import Path
 import random
 import shutil
@@ -29,7 +28,8 @@ from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, offered_qo
 from dual_arm_control.graph import full_graph, run_parameters
 from dual_arm_control.nodes.bag_play import main as bag_play_main, split_arguments
 from dual_arm_control.nodes.common import stamp_ns
-from graph_helpers import GraphProbe, parameter_arguments, ProcessGroup, ros_environment
+from graph_helpers import (GraphProbe, parameter_arguments, ProcessGroup, record_episode,
+                           ros_environment)
 import pytest
 from rclpy.duration import Duration
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
@@ -399,29 +399,16 @@ def recorded_run(tmp_path_factory):
     """
     Record a lockstep paper_toss run (SIM_DURATION) with `dual_arm_bringup --record`.
 
-    Volatile messages a publisher sent before it matched the recorder cannot be in the bag;
-    the bridge waits for the graph (and one settling second) before its first state, but on a
-    loaded machine a node was seen to match the recorder later. A run whose bag lacks an input
-    of the motion generator is recorded once more (its outputs may be partial: the latched
-    phase is always complete and serves as the lockstep barrier).
+    The recorded bridge starts only once the recorder matched every publisher, so every input
+    of the motion generator is in the bag from sim time 0.
     """
-    for attempt in range(2):
-        out = tmp_path_factory.mktemp(f'recorded{attempt}') / 'run'
-        params = out.parent / 'params.yaml'
-        params.write_text(f'sim_bridge:\n  ros__parameters:\n    duration: {SIM_DURATION}\n')
-        started = time.monotonic()
-        bringup = subprocess.run(
-            [str(SCRIPTS / 'dual_arm_bringup'), '--scenario', str(SCENARIO), '--params',
-             str(params), '--out', str(out), '--record',
-             '--domain-id', str(random.SystemRandom().randint(1, 200))],
-            capture_output=True, text=True, timeout=EPISODE_TIMEOUT, env=dict(os.environ))
-        assert bringup.returncode in (0, 1), bringup.stdout + bringup.stderr
-        assert inspect_bag(out / 'bag.mcap').status == 'complete'
-        missing = missing_inputs(out / 'bag.mcap')
-        if not missing:
-            return out / 'bag.mcap', time.monotonic() - started
-        print(f'\nrecording {attempt} lacks inputs ({missing}); recording again')
-    pytest.fail(f'two recordings lacked motion generator inputs: {missing}')
+    out = tmp_path_factory.mktemp('recorded') / 'run'
+    started = time.monotonic()
+    record_episode(SCENARIO, out, SIM_DURATION, EPISODE_TIMEOUT)
+    assert inspect_bag(out / 'bag.mcap').status == 'complete'
+    missing = missing_inputs(out / 'bag.mcap')
+    assert not missing, f'the recording lacks motion generator inputs: {missing}'
+    return out / 'bag.mcap', time.monotonic() - started
 
 
 def ds_parameters():

@@ -26,7 +26,7 @@ from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import full_graph, RECORDER_NODE
 from dual_arm_control.nodes.common import PUBLISHED_COUNTS_PREFIX
 from dual_arm_control.pipeline import seconds_to_ns, TickSchedule
-from graph_helpers import GraphProbe, ros_environment
+from graph_helpers import GraphProbe, record_episode, ros_environment
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Message
@@ -450,15 +450,8 @@ def test_bringup_record_flag_writes_a_complete_bag(tmp_path):
     0.2 s of sim time: the phase is transient local, so all its ticks up to the last stepped
     cycle (40 at 200 Hz) are recorded whatever the discovery timing.
     """
-    params = tmp_path / 'params.yaml'
-    params.write_text('sim_bridge:\n  ros__parameters:\n    duration: 0.2\n')
     out = tmp_path / 'run'
-    bringup = subprocess.run(
-        [str(SCRIPTS / 'dual_arm_bringup'), '--scenario', str(SCENARIO), '--params',
-         str(params), '--out', str(out), '--record',
-         '--domain-id', str(random.SystemRandom().randint(1, 200))],
-        capture_output=True, text=True, timeout=EPISODE_TIMEOUT, env=dict(os.environ))
-    assert bringup.returncode in (0, 1), bringup.stdout + bringup.stderr
+    record_episode(SCENARIO, out, 0.2, EPISODE_TIMEOUT)
     info = inspect_bag(out / 'bag.mcap')
     assert info.status == 'complete', (out / 'logs' / 'bag_record.log').read_text()
     # Every DS tick of the 0.2 s; the first may be there several times: the DS re-answers the

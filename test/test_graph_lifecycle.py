@@ -155,33 +155,29 @@ def test_a_controller_that_missed_the_first_tick_catches_up(tmp_path, ros_domain
     bridge reports that it waits for it. The bridge then republishes the cycle's whole state,
     the DS and the wrench QP answer the repeated tick again, and the run completes.
     """
+    from dual_arm_control.bringup import Launcher
     from dual_arm_control.graph import full_graph, run_parameters
     from dual_arm_control.resources import config_path
-    from graph_helpers import parameter_arguments, ProcessGroup
-    scenario = config_path('scenarios', 'paper_toss.yaml')
-    parameters = run_parameters('full', scenario, 'lockstep')
+    parameters = run_parameters('full', config_path('scenarios', 'paper_toss.yaml'), 'lockstep')
     parameters['sim_bridge'].pop('lockstep_wait_for_nodes')
     parameters['sim_bridge']['duration'] = 0.1
-    specs = {spec.label: spec for spec in full_graph()}
-
-    def ros_arguments(spec):
-        arguments = ['-r', f'__node:={spec.name}']
-        if spec.namespace:
-            arguments += ['-r', f'__ns:={spec.namespace}']
-        for param_file in spec.param_files:
-            arguments += ['--params-file', str(config_path(param_file))]
-        return arguments + parameter_arguments(
-            **dict(spec.parameters, **parameters.get(spec.name, {})))
-
-    with ProcessGroup(tmp_path, ros_domain) as group:
-        for label, spec in specs.items():
-            if label != 'right_passive_controller':
-                group.start(label, spec.executable, ros_arguments(spec))
+    late = [spec for spec in full_graph() if spec.label == 'right_passive_controller']
+    early = [spec for spec in full_graph() if spec not in late]
+    graph = Launcher(early, tmp_path, ros_domain, node_parameters=parameters)
+    late_controller = Launcher(late, tmp_path, ros_domain, node_parameters=parameters)
+    bridge_log = tmp_path / 'logs' / 'sim_bridge.log'
+    try:
+        graph.start()
         deadline = time.monotonic() + 60.0
-        while "stamped 0 s from ['right']" not in group.log('sim_bridge'):
-            assert time.monotonic() < deadline and group.poll('sim_bridge') is None, (
-                group.log('sim_bridge'))
+        while "stamped 0 s from ['right']" not in bridge_log.read_text():
+            assert time.monotonic() < deadline and 'sim_bridge' not in graph.poll(), (
+                bridge_log.read_text())
             time.sleep(0.2)
-        spec = specs['right_passive_controller']
-        group.start('right_passive_controller', spec.executable, ros_arguments(spec))
-        assert group.wait('sim_bridge', 60.0) == 0, group.log('sim_bridge')
+        late_controller.start()
+        deadline = time.monotonic() + 60.0
+        while 'sim_bridge' not in graph.poll() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert graph.poll().get('sim_bridge') == 0, bridge_log.read_text()
+    finally:
+        late_controller.stop()
+        graph.stop()
