@@ -200,8 +200,8 @@ def flush_publishers(node, timeout=FLUSH_TIMEOUT):
         remaining = max(deadline - time.monotonic(), 0.0)
         try:
             acknowledged &= publisher.wait_for_all_acked(Duration(seconds=remaining))
-        except Exception:  # noqa: B902 (a publisher of a context already shut down)
-            acknowledged = False
+        except RuntimeError:
+            acknowledged = False  # rclpy's InvalidHandle/RCLError: the context is already gone
     return acknowledged
 
 
