@@ -15,6 +15,7 @@ import subprocess
 import sys
 import time
 
+from dual_arm_control import contract
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.tools.param import (coerce_value, describe_value, dump_text,
                                           flat_parameters, main, nested_parameters,
@@ -265,6 +266,35 @@ def test_load_sets_the_file_values_and_reports_the_bad_ones(motion_node, tmp_pat
     assert (dumped['scenario'], dumped['speed.reach_speed']) == (str(SCENARIO), 0.85)
 
 
+def wait_until_recorder_matched(domain_id, topic, recorder):
+    """
+    Wait until bag_record matched every publisher of topic that a probe sees, the node's included.
+
+    Discovery is asynchronous: an event published before the recorder matched its publisher is
+    not delivered (volatile), so the set must wait for the match, as a recorded bridge does.
+    """
+    probe = GraphProbe(domain_id, name='param_recorder_probe')
+    matched = {}
+
+    def on_status(msg):
+        matched.update({value.key: int(value.value) for status in msg.status
+                        for value in status.values})
+
+    probe.node.create_subscription(contract.RECORDER_STATUS.msg_type,
+                                   contract.RECORDER_STATUS.name, on_status,
+                                   contract.RECORDER_STATUS.qos)
+
+    def ready():
+        publishers = probe.node.get_publishers_info_by_topic(topic)
+        node_publishes = any(f'/{p.node_name}' == NODE for p in publishers)
+        return (recorder.poll() is not None
+                or (node_publishes and matched.get(topic, 0) >= len(publishers)))
+    try:
+        return probe.spin_until(ready, STARTUP_TIMEOUT) and recorder.poll() is None
+    finally:
+        probe.close()
+
+
 def test_a_set_is_recorded_on_parameter_events_in_a_bag(motion_node, tmp_path):
     domain_id, _ = motion_node
     bag = tmp_path / 'events.mcap'
@@ -275,10 +305,8 @@ def test_a_set_is_recorded_on_parameter_events_in_a_bag(motion_node, tmp_path):
             stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
             env=ros_environment(domain_id))
     try:
-        deadline = time.monotonic() + STARTUP_TIMEOUT
-        while 'recording /parameter_events' not in log_path.read_text():
-            assert recorder.poll() is None and time.monotonic() < deadline, log_path.read_text()
-            time.sleep(0.1)
+        assert wait_until_recorder_matched(domain_id, '/parameter_events', recorder), (
+            log_path.read_text())
         assert param(domain_id, 'set', NODE, 'speed.time_constant', '0.08')[0] == 0
     finally:
         recorder.send_signal(signal.SIGINT)
