@@ -1,10 +1,11 @@
 """
-The graph as users run it: live tuning, clean shutdown, a node that dies.
+The graph as users run it: live tuning, clean shutdown, a node that dies, a reset.
 
 Every test starts `dual_arm_bringup` as a real process tree in its own ROS domain and acts on it
 from the test process.
 """
 
+import json
 import os
 from pathlib import Path
 import signal
@@ -181,3 +182,54 @@ def test_a_controller_that_missed_the_first_tick_catches_up(tmp_path, ros_domain
     finally:
         late_controller.stop()
         graph.stop()
+
+
+def test_sim_reset_replays_the_episode_in_every_node(tmp_path, ros_domain):
+    """
+    /sim/reset in a lockstep run starts the whole graph over: the episode repeats exactly.
+
+    Reset once the toss is done (2.3 s, in retract; the run would end at 4 s). The bridge,
+    tracker, DS, QP and both controllers all restart on the clock going back, so the second
+    episode goes through the same phases at the same sim times to the millisecond, and its
+    metrics (the bridge's log restarted at the reset) are a success.
+    """
+    reset_time_ns = 2_300_000_000
+    params = tmp_path / 'params.yaml'
+    params.write_text('sim_bridge:\n  ros__parameters:\n    duration: 4.0\n')
+    process, out = start_launcher(
+        tmp_path, '--scenario', str(SOURCE_ROOT / 'config' / 'scenarios' / 'paper_toss.yaml'),
+        '--params', str(params))
+    probe = GraphProbe(ros_domain, 'reset_caller')
+    episodes = [[]]
+    clock = []
+
+    def on_phase(msg):
+        t_ns, phase = stamp_ns(msg.header.stamp), msg.status[0].message
+        if episodes[-1] and t_ns < episodes[-1][-1][0]:
+            episodes.append([])
+        if not episodes[-1] or episodes[-1][-1][1] != phase:
+            episodes[-1].append((t_ns, phase))
+
+    try:
+        node = probe.node
+        node.create_subscription(contract.PHASE.msg_type, contract.PHASE.name, on_phase,
+                                 contract.PHASE.qos)
+        node.create_subscription(contract.CLOCK.msg_type, contract.CLOCK.name,
+                                 lambda msg: clock.append(stamp_ns(msg.clock)), contract.CLOCK.qos)
+        reset = node.create_client(Trigger, contract.SIM_RESET_SERVICE)
+        assert probe.spin_until(reset.service_is_ready, 60.0)
+        assert probe.spin_until(lambda: clock and clock[-1] >= reset_time_ns, 120.0), clock[-1:]
+        response = reset.call_async(Trigger.Request())
+        assert probe.spin_until(response.done, 10.0) and response.result().success
+        assert probe.spin_until(lambda: process.poll() is not None, 120.0)
+    finally:
+        probe.close()
+        log = stop(process)
+    assert process.returncode == 0, log[-3000:]
+    first, second = episodes
+    print(f'phases before the reset: {first}\nphases after: {second}')
+    assert [phase for _, phase in first[:6]] == [
+        'standby', 'reach', 'contact', 'manipulate', 'release', 'retract']
+    assert second[:6] == first[:6]
+    metrics = json.loads((out / 'metrics.json').read_text())
+    assert metrics['success'], metrics

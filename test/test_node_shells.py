@@ -1,5 +1,5 @@
 """
-The node shells object_tracker, passive_controller and wrench_qp, one at a time, in one process.
+The node shells one at a time in one process: tracker, controller, wrench QP, DS.
 
 Each test builds the node on a private rclpy context in the test's ROS domain; a probe node on
 the same EventsExecutor plays the rest of the graph (bridge, DS) and records what the node
@@ -8,6 +8,7 @@ objects the nodes wrap, called directly with the same inputs.
 """
 
 import math
+from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from dual_arm_control import contract
@@ -18,10 +19,12 @@ from dual_arm_control.core.passive_control import (hold_torque, PassiveControlle
                                                    PassiveControllerConfig)
 from dual_arm_control.core.tracker import TrackerConfig
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.nodes.common import seconds_to_ns, stamp_ns, time_msg
+from dual_arm_control.nodes.common import fill_odometry, seconds_to_ns, stamp_ns, time_msg
+from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
 from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
 from dual_arm_control.nodes.passive_controller import PassiveControllerNode
 from dual_arm_control.nodes.wrench_qp import WrenchQPNode
+from dual_arm_control.pipeline import TickSchedule
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest
@@ -536,3 +539,88 @@ def test_wrench_qp_parameters(wrench_qp):
     np.testing.assert_allclose(net_force, [0.0, 0.0, expected_z], atol=1e-3)
     np.testing.assert_allclose([-wrenches['left'][1], wrenches['right'][1]], [36.0, 36.0],
                                atol=1e-3)
+
+
+# -- ds_motion_generator -------------------------------------------------------------------------
+
+SCENARIO = Path(__file__).resolve().parents[1] / 'config' / 'scenarios' / 'paper_toss.yaml'
+FRI_PERIOD_NS = 2_000_000
+AUTO_START_TIME = 0.02
+
+
+@pytest.fixture
+def motion_generator(harness_factory):
+    harness = harness_factory(lambda context: DsMotionGenerator(
+        context=context, parameter_overrides=[
+            Parameter('scenario', value=str(SCENARIO)),
+            Parameter('auto_start_time', value=AUTO_START_TIME)]))
+    for arm in contract.ARMS:
+        harness.publisher(contract.JOINT_STATES, arm)
+        harness.publisher(contract.FT_WRENCH, arm)
+        harness.record(contract.DS_COMMAND, arm)
+    harness.publisher(contract.OBJECT_STATE)
+    harness.record(contract.PHASE)
+    harness.connect()
+    return harness
+
+
+def feed_cycle(harness, t_ns):
+    """Publish one FRI cycle of the resting cell: object estimate, joint states, FT readings."""
+    stamp = time_msg(t_ns)
+    estimate = contract.OBJECT_STATE.msg_type()
+    estimate.header.stamp = stamp
+    estimate.header.frame_id = contract.WORLD_FRAME
+    fill_odometry(estimate, P_WORLD_OBJECT, np.eye(3), np.zeros(3), np.zeros(3))
+    harness.send(contract.OBJECT_STATE.name, estimate)
+    for arm in contract.ARMS:
+        state = contract.JOINT_STATES.msg_type()
+        state.header.stamp = stamp
+        state.name = contract.joint_names(arm)
+        state.position = [float(q) for q in CELL.arm(arm).q_home]
+        state.velocity = [0.0] * len(state.name)
+        state.effort = [0.0] * len(state.name)
+        harness.send(contract.JOINT_STATES.resolved(arm), state)
+        wrench = contract.FT_WRENCH.msg_type()
+        wrench.header.stamp = stamp
+        harness.send(contract.FT_WRENCH.resolved(arm), wrench)
+
+
+def run_cycles(harness, count):
+    """Feed count cycles from t = 0; return [(phase, DS command of the left arm)] per tick."""
+    phases = harness.received[contract.PHASE.name]
+    commands = harness.received[contract.DS_COMMAND.resolved('left')]
+    first_phase, first_command = len(phases), len(commands)
+    schedule = TickSchedule(0.005)
+    ticks = 0
+    for cycle in range(count):
+        t_ns = cycle * FRI_PERIOD_NS
+        feed_cycle(harness, t_ns)
+        if schedule.due(t_ns):
+            schedule.take(t_ns)
+            ticks += 1
+            assert harness.spin_until(lambda: len(commands) - first_command == ticks
+                                      and len(phases) - first_phase == ticks), t_ns
+    result = []
+    for phase, command in zip(phases[first_phase:], commands[first_command:]):
+        pose, twist = command.pose.pose, command.twist.twist
+        result.append((phase.status[0].message, stamp_ns(command.header.stamp),
+                       (pose.position.x, pose.position.y, pose.position.z, twist.linear.x,
+                        twist.linear.y, twist.linear.z)))
+    return result
+
+
+def test_motion_generator_starts_over_when_the_clock_goes_back(motion_generator):
+    """
+    After a simulation reset the DS replays its episode from standby, tick for tick.
+
+    The first pass auto-starts at 20 ms and reaches; the same cycles fed again from t = 0 give
+    the same phases and the same commands, because the node rebuilt its generator and armed
+    its auto start again instead of carrying on in reach.
+    """
+    first_pass = run_cycles(motion_generator, 41)
+    phases = [phase for phase, _, _ in first_pass]
+    assert phases[0] == 'standby' and phases[-1] == 'reach', phases
+    moving = [command for phase, _, command in first_pass if phase == 'reach']
+    assert max(np.linalg.norm(command[3:]) for command in moving) > 0.0
+    second_pass = run_cycles(motion_generator, 41)
+    assert second_pass == first_pass

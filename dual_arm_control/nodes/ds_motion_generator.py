@@ -6,7 +6,9 @@ readings of that cycle and the newest object estimate (with `lockstep`, the trac
 stamped with the tick, waited for), runs DualArmMotionGenerator.step and
 publishes, stamped with the tick: per-arm DS commands, the desired object twist, the phase and
 markers. Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start
-time and rates. Services start an episode, send the arms home and reset.
+time and rates. Services start an episode, send the arms home and reset. A complete cycle
+stamped earlier than the last tick means the clock went back (/sim/reset): the node starts over
+as at start-up (fresh generator, auto start armed again), like the tracker, QP and controllers.
 """
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -70,6 +72,7 @@ class DsMotionGenerator(Node):
         self._models = {arm: arm_model(arm, self._cell) for arm in ARMS}
         self._names = {arm: joint_names(arm) for arm in ARMS}
         self._refusals = RefusalCounter(self.get_logger())
+        self._time_resets = 0
         self._diagnostics = CounterDiagnostics(self)
         self._joint_states = {}
         self._ft = {}
@@ -157,6 +160,8 @@ class DsMotionGenerator(Node):
             if (self._lockstep and self._schedule.due(t_ns)
                     and self._object_stamp_ns != t_ns):
                 break
+            if self._schedule.last_tick_ns is not None and t_ns < self._schedule.last_tick_ns:
+                self._restart_after_time_reset(t_ns)
             joints = self._joint_states.pop(t_ns)
             readings = self._ft.pop(t_ns)
             for stale in [s for s in self._joint_states if s < t_ns]:
@@ -167,6 +172,28 @@ class DsMotionGenerator(Node):
                 self._tick(t_ns, self._schedule.take(t_ns), joints, readings)
             elif t_ns == self._schedule.last_tick_ns and self._last_output is not None:
                 self._publish(t_ns, self._last_output)
+
+    def _restart_after_time_reset(self, t_ns):
+        """Start over as at start-up when a whole cycle came stamped before the last tick."""
+        self.get_logger().info(
+            f'cycle stamp went back from {self._schedule.last_tick_ns} ns to {t_ns} ns (clock '
+            'reset): motion generator restarted in standby')
+        if self._pending_config is not None:
+            self._generator = DualArmMotionGenerator(self._pending_config)
+            self._pending_config = None
+        else:
+            self._generator = DualArmMotionGenerator(self._generator.config)
+        self._schedule.reset()
+        self._started = self._auto_start_ns == 0
+        self._commands = dict.fromkeys(self._commands, False)
+        self._last_marker_ns = None
+        self._last_output = None
+        if self._object is not None and self._object[0] > t_ns:
+            self._object = None
+        for pending in (self._joint_states, self._ft):
+            for stale in [s for s in pending if s > t_ns]:
+                del pending[stale]
+        self._time_resets += 1
 
     def _tick(self, t_ns, dt, joints, readings):
         if self._pending_config is not None:
@@ -197,7 +224,7 @@ class DsMotionGenerator(Node):
         """Return the (level, message, values) of this node's diagnostics."""
         level = DiagnosticStatus.WARN if self._refusals.total else DiagnosticStatus.OK
         values = dict(self._refusals.counts, phase=output.phase.phase.value,
-                      refused_total=self._refusals.total)
+                      refused_total=self._refusals.total, time_resets=self._time_resets)
         return level, f'phase {output.phase.phase.value}', values
 
     def _object_at(self, t_ns, arms):
