@@ -52,9 +52,13 @@ class TickSchedule:
         self.period_ns = seconds_to_ns(period)
         self.last_tick_ns = None
 
+    def went_back(self, t_ns):
+        """Return True if t_ns [ns] is earlier than the last tick (the clock went back)."""
+        return self.last_tick_ns is not None and t_ns < self.last_tick_ns
+
     def due(self, t_ns):
         """Return True if a tick is due at t_ns [ns] (does not record it)."""
-        if self.last_tick_ns is None or t_ns < self.last_tick_ns:
+        if self.last_tick_ns is None or self.went_back(t_ns):
             return True
         return t_ns // self.period_ns > self.last_tick_ns // self.period_ns
 

@@ -1,5 +1,5 @@
 """
-The phases and the DS give the same reach at 200 Hz and at 500 Hz.
+The DS gives the same reach at 200 Hz and 500 Hz; the nodes tick on the FRI grid.
 
 The tools follow the commands kinematically, integrated at 0.5 ms with each command held until
 the next tick (as the torque-controlled arms do), from standby toward the paper's cube.
@@ -10,7 +10,7 @@ from dual_arm_control.core.geometry import rotation_exp
 from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
                                                     ObjectMeasurement)
 from dual_arm_control.description.cell import load_cell
-from dual_arm_control.pipeline import motion_config_for_scenario
+from dual_arm_control.pipeline import motion_config_for_scenario, TickSchedule
 from dual_arm_control.scenario import load_scenario, scenario_path
 import numpy as np
 
@@ -65,3 +65,19 @@ def test_reach_path_and_timing_agree_at_200_and_500_hz():
         time_gap = np.max(np.linalg.norm(slow_paths[arm][slow_index]
                                          - fast_paths[arm][fast_index], axis=1))
         assert time_gap <= 0.0025, f'{arm}: {time_gap * 1e3:.2f} mm apart at equal times'
+
+
+def test_tick_schedule_keeps_its_rate_on_the_fri_grid_and_restarts_after_a_reset():
+    """5 ms ticks on a 2 ms grid fall at 0, 6, 10, 16, 20 ms; an earlier stamp restarts them."""
+    schedule = TickSchedule(0.005)
+    ticks = []
+    for cycle in range(11):
+        t_ns = cycle * 2_000_000
+        if schedule.due(t_ns):
+            ticks.append((t_ns, schedule.take(t_ns)))
+    assert ticks == [(0, 0.005), (6_000_000, 0.006), (10_000_000, 0.004),
+                     (16_000_000, 0.006), (20_000_000, 0.004)]
+    assert not schedule.went_back(20_000_000) and not schedule.due(20_000_000)
+    assert schedule.went_back(2_000_000) and schedule.due(2_000_000)
+    assert schedule.take(2_000_000) == 0.005
+    assert not schedule.went_back(2_000_000)

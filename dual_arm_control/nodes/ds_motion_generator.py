@@ -160,7 +160,7 @@ class DsMotionGenerator(Node):
             if (self._lockstep and self._schedule.due(t_ns)
                     and self._object_stamp_ns != t_ns):
                 break
-            if self._schedule.last_tick_ns is not None and t_ns < self._schedule.last_tick_ns:
+            if self._schedule.went_back(t_ns):
                 self._restart_after_time_reset(t_ns)
             joints = self._joint_states.pop(t_ns)
             readings = self._ft.pop(t_ns)
@@ -178,11 +178,8 @@ class DsMotionGenerator(Node):
         self.get_logger().info(
             f'cycle stamp went back from {self._schedule.last_tick_ns} ns to {t_ns} ns (clock '
             'reset): motion generator restarted in standby')
-        if self._pending_config is not None:
-            self._generator = DualArmMotionGenerator(self._pending_config)
-            self._pending_config = None
-        else:
-            self._generator = DualArmMotionGenerator(self._generator.config)
+        self._generator = DualArmMotionGenerator(self._pending_config or self._generator.config)
+        self._pending_config = None
         self._schedule.reset()
         self._started = self._auto_start_ns == 0
         self._commands = dict.fromkeys(self._commands, False)

@@ -228,8 +228,6 @@ class WrenchQPNode(Node):
             self._publish_wrenches(t_ns, self._last_wrenches)
             return
         self.counters['ticks'] += 1
-        if self._schedule.last_tick_ns is not None and t_ns < self._schedule.last_tick_ns:
-            self._schedule.reset()
         dt = self._schedule.take(t_ns)
         if self._pending_config is not None:
             self._config, self._pending_config = self._pending_config, None
