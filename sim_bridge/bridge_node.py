@@ -37,7 +37,8 @@ from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
-from dual_arm_control.nodes.common import (create_topic_publisher, run_node, seconds_to_ns,
+from dual_arm_control.nodes.common import (create_topic_publisher, recorder_has_matched,
+                                           recorder_matched_counts, run_node, seconds_to_ns,
                                            stamp_ns, time_msg)
 from dual_arm_control.parameters import parameter_descriptor
 from dual_arm_control.resources import config_path
@@ -370,18 +371,11 @@ class SimBridge(Node):
 
     def _on_recorder_status(self, msg):
         """Keep the recorder's matched publishers per topic."""
-        try:
-            self._recorder_matched = {value.key: int(value.value)
-                                      for status in msg.status for value in status.values}
-        except ValueError:
-            self._recorder_matched = None
+        self._recorder_matched = recorder_matched_counts(msg)
 
     def _recorder_ready(self):
         """Return True once the recorder matched every publisher the bridge sees."""
-        if self._recorder_matched is None:
-            return False
-        return all(self.count_publishers(topic) <= matched
-                   for topic, matched in self._recorder_matched.items())
+        return recorder_has_matched(self, self._recorder_matched)
 
     def _streams(self):
         """Return every state and ground-truth stream the bridge publishes."""

@@ -17,6 +17,7 @@ import time
 
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.nodes.common import recorder_has_matched, recorder_matched_counts
 from dual_arm_control.tools.param import (coerce_value, describe_value, dump_text,
                                           flat_parameters, main, nested_parameters,
                                           parameter_changes, parameter_message,
@@ -274,21 +275,21 @@ def wait_until_recorder_matched(domain_id, topic, recorder):
     not delivered (volatile), so the set must wait for the match, as a recorded bridge does.
     """
     probe = GraphProbe(domain_id, name='param_recorder_probe')
-    matched = {}
+    matched = [None]
 
     def on_status(msg):
-        matched.update({value.key: int(value.value) for status in msg.status
-                        for value in status.values})
+        matched[0] = recorder_matched_counts(msg)
 
     probe.node.create_subscription(contract.RECORDER_STATUS.msg_type,
                                    contract.RECORDER_STATUS.name, on_status,
                                    contract.RECORDER_STATUS.qos)
 
     def ready():
-        publishers = probe.node.get_publishers_info_by_topic(topic)
-        node_publishes = any(f'/{p.node_name}' == NODE for p in publishers)
+        node_publishes = any(f'/{p.node_name}' == NODE
+                             for p in probe.node.get_publishers_info_by_topic(topic))
         return (recorder.poll() is not None
-                or (node_publishes and matched.get(topic, 0) >= len(publishers)))
+                or (node_publishes and topic in (matched[0] or {})
+                    and recorder_has_matched(probe.node, matched[0])))
     try:
         return probe.spin_until(ready, STARTUP_TIMEOUT) and recorder.poll() is None
     finally:
