@@ -128,6 +128,12 @@ def expected_counts(cycles):
     return refused, clamps
 
 
+def assert_bridge_finishes(probe, graph):
+    """Spin the probe until the bridge process exits; assert it exited 0 (else show its log)."""
+    assert probe.spin_until(lambda: graph.poll('sim_bridge') is not None, BRIDGE_TIMEOUT)
+    assert graph.poll('sim_bridge') == 0, graph.log('sim_bridge')
+
+
 def diagnostics_values(msg, status_name):
     """Return {key: int} of one status of a DiagnosticArray."""
     status = next(s for s in msg.status if s.name == status_name)
@@ -161,9 +167,7 @@ def test_bad_commands_are_refused_counted_and_the_arm_holds(tmp_path, ros_domain
             graph.start_controller('left', mode='gravity')
             graph.start_bridge(duration=BAD_RUN_CYCLES * FRI_PERIOD, diagnostics_period=0.1,
                                trajectory_log=str(log_path), publish_ground_truth=False)
-            assert probe.spin_until(lambda: graph.poll('sim_bridge') is not None,
-                                    BRIDGE_TIMEOUT)
-            assert graph.poll('sim_bridge') == 0, graph.log('sim_bridge')
+            assert_bridge_finishes(probe, graph)
     finally:
         probe.close()
     data = load_trajectory(log_path)
@@ -211,9 +215,7 @@ def test_realtime_watchdog_holds_an_arm_whose_controller_stops(tmp_path, ros_dom
             assert sim_time[-1] < duration - 2.0, 'the probe saw the bridge too late'
             graph.stop('right_controller')
             stopped_at = sim_time[-1]
-            assert probe.spin_until(lambda: graph.poll('sim_bridge') is not None,
-                                    BRIDGE_TIMEOUT)
-            assert graph.poll('sim_bridge') == 0, graph.log('sim_bridge')
+            assert_bridge_finishes(probe, graph)
     finally:
         probe.close()
     data = load_trajectory(log_path)
@@ -258,9 +260,7 @@ def test_mocap_and_ground_truth_topics_agree_with_the_log(tmp_path, ros_domain):
                 BRIDGE_TIMEOUT)
             for arm in contract.ARMS:
                 graph.start_controller(arm, mode='gravity')
-            assert probe.spin_until(lambda: graph.poll('sim_bridge') is not None,
-                                    BRIDGE_TIMEOUT)
-            assert graph.poll('sim_bridge') == 0, graph.log('sim_bridge')
+            assert_bridge_finishes(probe, graph)
     finally:
         probe.close()
     data = load_trajectory(log_path)

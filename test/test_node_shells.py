@@ -8,7 +8,6 @@ objects the nodes wrap, called directly with the same inputs.
 """
 
 import math
-from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from dual_arm_control import contract
@@ -25,6 +24,7 @@ from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
 from dual_arm_control.nodes.passive_controller import PassiveControllerNode
 from dual_arm_control.nodes.wrench_qp import WrenchQPNode
 from dual_arm_control.pipeline import TickSchedule
+from dual_arm_control.scenario import scenario_path
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest
@@ -255,10 +255,10 @@ def lockstep_controller(harness_factory):
     return controller_harness(harness_factory, True)
 
 
-def joint_state(t_ns, q, dq):
+def joint_state(t_ns, q, dq, arm='left'):
     msg = contract.JOINT_STATES.msg_type()
     msg.header.stamp = time_msg(t_ns)
-    msg.name = contract.joint_names('left')
+    msg.name = contract.joint_names(arm)
     msg.position = [float(v) for v in q]
     msg.velocity = [float(v) for v in dq]
     return msg
@@ -543,7 +543,6 @@ def test_wrench_qp_parameters(wrench_qp):
 
 # -- ds_motion_generator -------------------------------------------------------------------------
 
-SCENARIO = Path(__file__).resolve().parents[1] / 'config' / 'scenarios' / 'paper_toss.yaml'
 FRI_PERIOD_NS = 2_000_000
 AUTO_START_TIME = 0.02
 
@@ -552,7 +551,7 @@ AUTO_START_TIME = 0.02
 def motion_generator(harness_factory):
     harness = harness_factory(lambda context: DsMotionGenerator(
         context=context, parameter_overrides=[
-            Parameter('scenario', value=str(SCENARIO)),
+            Parameter('scenario', value=str(scenario_path('paper_toss'))),
             Parameter('auto_start_time', value=AUTO_START_TIME)]))
     for arm in contract.ARMS:
         harness.publisher(contract.JOINT_STATES, arm)
@@ -573,20 +572,16 @@ def feed_cycle(harness, t_ns):
     fill_odometry(estimate, P_WORLD_OBJECT, np.eye(3), np.zeros(3), np.zeros(3))
     harness.send(contract.OBJECT_STATE.name, estimate)
     for arm in contract.ARMS:
-        state = contract.JOINT_STATES.msg_type()
-        state.header.stamp = stamp
-        state.name = contract.joint_names(arm)
-        state.position = [float(q) for q in CELL.arm(arm).q_home]
-        state.velocity = [0.0] * len(state.name)
-        state.effort = [0.0] * len(state.name)
-        harness.send(contract.JOINT_STATES.resolved(arm), state)
+        q_home = CELL.arm(arm).q_home
+        harness.send(contract.JOINT_STATES.resolved(arm),
+                     joint_state(t_ns, q_home, np.zeros_like(q_home), arm))
         wrench = contract.FT_WRENCH.msg_type()
         wrench.header.stamp = stamp
         harness.send(contract.FT_WRENCH.resolved(arm), wrench)
 
 
 def run_cycles(harness, count):
-    """Feed count cycles from t = 0; return [(phase, DS command of the left arm)] per tick."""
+    """Feed count cycles from t = 0; return [(phase, stamp, left DS command)] per DS tick."""
     phases = harness.received[contract.PHASE.name]
     commands = harness.received[contract.DS_COMMAND.resolved('left')]
     first_phase, first_command = len(phases), len(commands)
