@@ -115,9 +115,14 @@ def headline_rows(results):
     return rows
 
 
+def _image_links(plots, link_root):
+    """Return one Markdown image line per plot path relative to the results root."""
+    return [f'![{Path(plot).name}]({link_root}/{plot})' for plot in plots]
+
+
 def _plots(results, name, link_root):
-    entry = results[name]
-    return '\n'.join(f'![{plot}]({link_root}/{name}/{plot})' for plot in entry['plots'])
+    plots = [f'{name}/{plot}' for plot in results[name]['plots']]
+    return '\n'.join(_image_links(plots, link_root))
 
 
 def _not_run(name):
@@ -343,8 +348,8 @@ def robustness_section(results, link_root):
         f'Failures: {len(failures)}' + ('' if not failures else ': ' + '; '.join(
             f'trial {item.get("trial")}: {item.get("reason")}' for item in failures[:10])
             + (' …' if len(failures) > 10 else '')), '']
-    out += [f'![{Path(plot).name}]({link_root}/{plot})' for plot in
-            results.get('robustness_plots', []) if not plot.startswith('robustness/displaced')]
+    out += _image_links([plot for plot in results.get('robustness_plots', [])
+                         if not plot.startswith('robustness/displaced')], link_root)
     out += ['']
     displaced = results['displaced']
     if displaced is not None:
@@ -355,8 +360,8 @@ def robustness_section(results, link_root):
                 f'{number(displaced.get("release_position_error"), 1, 1000.0, "mm")}, '
                 f'landing error {number(displaced.get("landing_error"), 1, 1000.0, "mm")}.',
                 '']
-        out += [f'![{Path(plot).name}]({link_root}/{plot})' for plot in
-                results.get('robustness_plots', []) if plot.startswith('robustness/displaced')]
+        out += _image_links([plot for plot in results.get('robustness_plots', [])
+                             if plot.startswith('robustness/displaced')], link_root)
         out += ['']
     return out
 
