@@ -35,11 +35,12 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError, InputError
-from dual_arm_control.core.geometry import matrix_to_quat_xyzw
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
-from dual_arm_control.nodes.common import (create_topic_publisher, recorder_has_matched,
+from dual_arm_control.nodes.common import (create_topic_publisher, diagnostic_value,
+                                           fill_odometry, recorder_has_matched,
                                            recorder_matched_counts, run_node, seconds_to_ns,
-                                           stamp_ns, time_msg)
+                                           set_odometry, set_pose, set_vector3, stamp_ns,
+                                           time_msg)
 from dual_arm_control.parameters import parameter_descriptor
 from dual_arm_control.resources import config_path
 from dual_arm_control.scenario import load_scenario
@@ -513,7 +514,7 @@ class SimBridge(Node):
         """Publish the mocap samples delivered at this cycle (stamp = sampling time)."""
         for sample in self._mocap_samples:
             self._mocap.msg.header.stamp = time_msg(seconds_to_ns(sample.stamp))
-            _set_pose(self._mocap.msg.pose, sample.p_world, sample.quat_xyzw)
+            set_pose(self._mocap.msg.pose, sample.p_world, sample.quat_xyzw)
             self._mocap.publish()
         self._last_publish_wall = time.monotonic()
 
@@ -535,8 +536,8 @@ class SimBridge(Node):
             force, torque = self.twin.ft_wrench(arm)
             ft = self._ft[arm]
             ft.msg.header.stamp = stamp
-            _set_vector(ft.msg.wrench.force, force)
-            _set_vector(ft.msg.wrench.torque, torque)
+            set_vector3(ft.msg.wrench.force, force)
+            set_vector3(ft.msg.wrench.torque, torque)
             ft.publish()
 
     def _publish_joint_states(self):
@@ -557,21 +558,20 @@ class SimBridge(Node):
     def _publish_truth(self, stamp):
         """Publish the simulator's ground truth: object, tools, pad wrenches and contacts."""
         self._object_truth.msg.header.stamp = stamp
-        _set_odometry(self._object_truth.msg, *self.twin.object_pose(), *self.twin.object_twist())
+        set_odometry(self._object_truth.msg, *self.twin.object_pose(), *self.twin.object_twist())
         self._object_truth.publish()
         for arm in contract.ARMS:
             p_world_tool, R_world_tool = self.twin.tool_pose(arm)
             tool = self._tool_truth[arm]
             tool.msg.header.stamp = stamp
-            _set_odometry(tool.msg, p_world_tool, matrix_to_quat_xyzw(R_world_tool),
-                          *self.twin.tool_twist(arm))
+            fill_odometry(tool.msg, p_world_tool, R_world_tool, *self.twin.tool_twist(arm))
             tool.publish()
             force_world, in_contact = self.twin.pad_contact(arm)
             _, torque_world = self.twin.pad_wrench(arm)
             wrench = self._pad_wrench_truth[arm]
             wrench.msg.header.stamp = stamp
-            _set_vector(wrench.msg.wrench.force, force_world)
-            _set_vector(wrench.msg.wrench.torque, torque_world)
+            set_vector3(wrench.msg.wrench.force, force_world)
+            set_vector3(wrench.msg.wrench.torque, torque_world)
             wrench.publish()
             self._pad_contact_truth[arm].msg.data = bool(in_contact)
             self._pad_contact_truth[arm].publish()
@@ -597,7 +597,7 @@ class SimBridge(Node):
                        + sum(values.get(f'refused_{r}', 0) for r in REFUSAL_REASONS))
             status.level = DiagnosticStatus.WARN if trouble else DiagnosticStatus.OK
             status.message = 'commands refused, clamped or missing' if trouble else 'ok'
-            status.values = [KeyValue(key=key, value=_format_value(value))
+            status.values = [KeyValue(key=key, value=diagnostic_value(value))
                              for key, value in values.items()]
             msg.status.append(status)
         self._diagnostics_pub.publish(msg)
@@ -664,31 +664,6 @@ class _Stream:
     def publish(self):
         """Send the message as it is filled now."""
         self.publisher.publish(self.msg)
-
-
-def _set_vector(target, values):
-    """Copy a 3-vector into a geometry_msgs Vector3 or Point."""
-    target.x, target.y, target.z = float(values[0]), float(values[1]), float(values[2])
-
-
-def _set_pose(pose, position, quat_xyzw):
-    """Copy a position and an (x, y, z, w) quaternion into a geometry_msgs Pose."""
-    _set_vector(pose.position, position)
-    orientation = pose.orientation
-    orientation.x, orientation.y = float(quat_xyzw[0]), float(quat_xyzw[1])
-    orientation.z, orientation.w = float(quat_xyzw[2]), float(quat_xyzw[3])
-
-
-def _set_odometry(msg, position, quat_xyzw, linear_velocity, angular_velocity):
-    """Fill an Odometry message's pose and twist (both in the world frame)."""
-    _set_pose(msg.pose.pose, position, quat_xyzw)
-    _set_vector(msg.twist.twist.linear, linear_velocity)
-    _set_vector(msg.twist.twist.angular, angular_velocity)
-
-
-def _format_value(value):
-    """Format a diagnostic value (ints exactly, floats to 6 significant digits)."""
-    return f'{value:.6g}' if isinstance(value, float) else str(value)
 
 
 def _write_log(node):

@@ -127,12 +127,22 @@ def has_estimate(msg):
     return msg.pose.covariance[0] != contract.NO_ESTIMATE_COVARIANCE
 
 
-def fill_odometry(msg, position, R_world, linear, angular):
-    """Write a pose (position, rotation matrix) and twist into an Odometry message."""
-    set_vector3(msg.pose.pose.position, position)
-    set_quaternion(msg.pose.pose.orientation, matrix_to_quat_xyzw(R_world))
+def set_pose(msg, position, quat_xyzw):
+    """Write a position and an (x, y, z, w) quaternion into a Pose message."""
+    set_vector3(msg.position, position)
+    set_quaternion(msg.orientation, quat_xyzw)
+
+
+def set_odometry(msg, position, quat_xyzw, linear, angular):
+    """Write a pose (position, quaternion) and twist into an Odometry message."""
+    set_pose(msg.pose.pose, position, quat_xyzw)
     set_vector3(msg.twist.twist.linear, linear)
     set_vector3(msg.twist.twist.angular, angular)
+
+
+def fill_odometry(msg, position, R_world, linear, angular):
+    """Write a pose (position, rotation matrix) and twist into an Odometry message."""
+    set_odometry(msg, position, matrix_to_quat_xyzw(R_world), linear, angular)
 
 
 def recorder_matched_counts(msg):
@@ -321,7 +331,7 @@ class CounterDiagnostics:
         level, message, values = report()
         status = DiagnosticStatus(level=level, name=self.name, message=message,
                                   hardware_id=self._node.get_name())
-        status.values = [KeyValue(key=key, value=_format_value(value))
+        status.values = [KeyValue(key=key, value=diagnostic_value(value))
                          for key, value in values.items()]
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = time_msg(t_ns)
@@ -329,7 +339,7 @@ class CounterDiagnostics:
         return True
 
 
-def _format_value(value):
+def diagnostic_value(value):
     """Format a diagnostic value: floats to 6 significant digits, the rest as str()."""
     return f'{value:.6g}' if isinstance(value, float) else str(value)
 

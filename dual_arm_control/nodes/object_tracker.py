@@ -28,8 +28,8 @@ from dual_arm_control import contract
 from dual_arm_control.core.tracker import MeasurementOutcome, ObjectTracker, TrackerConfig
 from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
                                            NANOSECONDS_PER_SECOND, quaternion,
-                                           RefusalCounter, run_node, seconds_to_ns, set_quaternion,
-                                           set_vector3, stamp_ns, time_msg, vector3)
+                                           RefusalCounter, run_node, seconds_to_ns, set_odometry,
+                                           stamp_ns, time_msg, vector3)
 from dual_arm_control.parameters import ConfigParameters
 import numpy as np
 from rclpy.node import Node
@@ -172,10 +172,8 @@ class ObjectTrackerNode(Node):
         """Publish the estimate stamped t_ns (a sample's or a cycle's time)."""
         msg = self._state_msg
         msg.header.stamp = time_msg(t_ns)
-        set_vector3(msg.pose.pose.position, estimate.position)
-        set_quaternion(msg.pose.pose.orientation, estimate.quat_xyzw)
-        set_vector3(msg.twist.twist.linear, estimate.linear_velocity)
-        set_vector3(msg.twist.twist.angular, estimate.angular_velocity)
+        set_odometry(msg, estimate.position, estimate.quat_xyzw, estimate.linear_velocity,
+                     estimate.angular_velocity)
         self._state_pub.publish(msg)
         self.counters['states_published'] += 1
 
