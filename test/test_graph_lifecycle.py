@@ -212,8 +212,10 @@ def test_sim_reset_replays_the_episode_in_every_node(tmp_path, ros_domain):
 
     try:
         node = probe.node
+        # The publishers' depth: joining the running graph late, the probe still gets every
+        # phase from t = 0 (the latched history) and loses none while it lags.
         node.create_subscription(contract.PHASE.msg_type, contract.PHASE.name, on_phase,
-                                 contract.PHASE.qos)
+                                 contract.PHASE.publisher_qos)
         node.create_subscription(contract.CLOCK.msg_type, contract.CLOCK.name,
                                  lambda msg: clock.append(stamp_ns(msg.clock)), contract.CLOCK.qos)
         reset = node.create_client(Trigger, contract.SIM_RESET_SERVICE)
