@@ -8,6 +8,7 @@ topics are relative names resolved under the arm namespace (``/left``, ``/right`
 from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
+from dual_arm_control.core.arms import ARMS, joint_names, JOINTS_PER_ARM  # noqa: F401
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
@@ -16,8 +17,6 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 from visualization_msgs.msg import MarkerArray
 
-ARMS = ('left', 'right')
-JOINTS_PER_ARM = 7
 WORLD_FRAME = 'world'
 
 # Messages a reliable publisher keeps for a subscriber that falls behind (a recorder under load):
@@ -38,13 +37,6 @@ SENSOR_QOS = QoSProfile(
 LATCHED_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-def joint_names(arm):
-    """Return the seven joint names of an arm as they appear in JointState messages."""
-    if arm not in ARMS:
-        raise ValueError(f'unknown arm {arm!r}; expected one of {ARMS}')
-    return [f'{arm}_A{index}' for index in range(1, JOINTS_PER_ARM + 1)]
 
 
 @dataclass(frozen=True)

@@ -17,11 +17,12 @@ from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotio
                                                     ObjectMeasurement)
 from dual_arm_control.core.passive_control import PassiveController, PassiveControllerConfig
 from dual_arm_control.core.tracker import ObjectTracker, TrackerConfig
+from dual_arm_control.core.wrench_distribution import WrenchDistributor, WrenchDistributorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
 from dual_arm_control.graph import EPISODE_START_TIME
-from dual_arm_control.pipeline import (motion_config_for_scenario, seconds_to_ns, TickSchedule,
-                                       WrenchDistributor, WrenchDistributorConfig)
+from dual_arm_control.runtime.configuration import motion_config_for_scenario
+from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 import numpy as np
 from sim_bridge.twin import DualArmTwin
 

@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 
 from dual_arm_control.catalogue import load_catalogue
-from dual_arm_control.contract import ARMS
+from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.robot_model import ArmModel, JOINTS_PER_ARM
 from dual_arm_control.core.validation import check_range, check_vector

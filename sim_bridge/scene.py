@@ -16,7 +16,7 @@ pad-object contact is an explicit pair with stiff, critically damped parameters 
 from dataclasses import dataclass
 import xml.etree.ElementTree as ElementTree
 
-from dual_arm_control.contract import ARMS
+from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw
 import mujoco

@@ -12,7 +12,7 @@ from collections import deque
 import copy
 from dataclasses import dataclass
 
-from dual_arm_control.contract import ARMS
+from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
 from dual_arm_control.core.validation import finite_array

@@ -23,7 +23,7 @@ from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
 from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
 from dual_arm_control.nodes.passive_controller import PassiveControllerNode
 from dual_arm_control.nodes.wrench_qp import WrenchQPNode
-from dual_arm_control.pipeline import TickSchedule
+from dual_arm_control.runtime.timing import TickSchedule
 from dual_arm_control.scenario import scenario_path
 from graph_helpers import GraphProbe
 import numpy as np

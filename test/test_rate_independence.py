@@ -10,7 +10,8 @@ from dual_arm_control.core.geometry import rotation_exp
 from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
                                                     ObjectMeasurement)
 from dual_arm_control.description.cell import load_cell
-from dual_arm_control.pipeline import motion_config_for_scenario, TickSchedule
+from dual_arm_control.runtime.configuration import motion_config_for_scenario
+from dual_arm_control.runtime.timing import TickSchedule
 from dual_arm_control.scenario import load_scenario, scenario_path
 import numpy as np
 

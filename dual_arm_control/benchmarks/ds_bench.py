@@ -67,7 +67,7 @@ def bench_motion_generator_step(ticks=2000, dt=0.005):
     from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
                                                         ObjectMeasurement)
     from dual_arm_control.description.cell import load_cell
-    from dual_arm_control.pipeline import motion_config_for_scenario
+    from dual_arm_control.runtime.configuration import motion_config_for_scenario
     from dual_arm_control.scenario import load_scenario, scenario_path
     cell = load_cell()
     scenario = load_scenario(scenario_path('paper_toss'), cell=cell)

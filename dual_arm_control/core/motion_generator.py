@@ -9,7 +9,7 @@ release / retract motions. Time enters as dt; nothing reads a clock.
 
 from dataclasses import dataclass, field
 
-from dual_arm_control.contract import ARMS
+from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.contact import (ContactConfig, ContactDetector, FtBiasEstimator,
                                            FtCompensationConfig)
 from dual_arm_control.core.cooperative import CoordinationConfig

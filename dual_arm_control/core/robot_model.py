@@ -7,12 +7,12 @@ a name says otherwise; Jacobians and twists are world-aligned at the named point
 [linear; angular].
 """
 
+from dual_arm_control.core.arms import JOINTS_PER_ARM
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.validation import check_vector, finite_array
 import numpy as np
 import pinocchio as pin
 
-JOINTS_PER_ARM = 7
 TOOL_FRAME = 'tool'
 FLANGE_FRAME = 'flange'
 SENSOR_FRAME = 'ft_sensor'

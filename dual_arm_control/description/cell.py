@@ -3,7 +3,7 @@
 from dataclasses import dataclass
 from pathlib import Path
 
-from dual_arm_control.contract import ARMS, joint_names
+from dual_arm_control.core.arms import ARMS, joint_names
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix
 from dual_arm_control.core.robot_model import ArmModel, JOINTS_PER_ARM

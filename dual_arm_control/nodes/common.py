@@ -18,7 +18,7 @@ from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, quat_xyzw_to_matrix
 from dual_arm_control.parameters import parameter_descriptor
-from dual_arm_control.pipeline import NANOSECONDS_PER_SECOND, seconds_to_ns, TickSchedule
+from dual_arm_control.runtime.timing import NANOSECONDS_PER_SECOND, seconds_to_ns, TickSchedule
 import numpy as np
 import rclpy
 from rclpy.duration import Duration

@@ -25,7 +25,8 @@ from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publ
                                            TickSchedule, time_msg, wrench_array)
 from dual_arm_control.nodes.markers import motion_markers
 from dual_arm_control.parameters import ConfigParameters
-from dual_arm_control.pipeline import motion_config_for_scenario, object_state_at
+from dual_arm_control.runtime.configuration import motion_config_for_scenario
+from dual_arm_control.runtime.timing import object_state_at
 from dual_arm_control.scenario import load_scenario
 from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry

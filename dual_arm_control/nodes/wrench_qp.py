@@ -1,5 +1,5 @@
 """
-wrench_qp: the contact wrench of each pad, once per DS tick (pipeline.WrenchDistributor).
+wrench_qp: the contact wrench of each pad, once per DS tick (core WrenchDistributor).
 
 A tick t_j is processed when /object/desired_twist(t_j), /dual_arm/phase(t_j) and the joint
 states (t_j) of both arms have arrived (with `lockstep`, also the tracker's /object/state(t_j));
@@ -24,6 +24,8 @@ from dual_arm_control.catalogue import object_spec
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.wrench_distribution import (GRASPING_PHASES, WrenchDistributor,
+                                                       WrenchDistributorConfig)
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publisher,
                                            has_estimate, joint_state_arrays,
@@ -31,8 +33,7 @@ from dual_arm_control.nodes.common import (CounterDiagnostics, create_topic_publ
                                            run_node, set_wrench, stamp_ns, TickSchedule, time_msg,
                                            vector3)
 from dual_arm_control.parameters import ConfigParameters, parameter_descriptor
-from dual_arm_control.pipeline import (GRASPING_PHASES, object_state_at, WrenchDistributor,
-                                       WrenchDistributorConfig)
+from dual_arm_control.runtime.timing import object_state_at
 from dual_arm_control.scenario import load_scenario
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult

@@ -1,0 +1,105 @@
+"""
+The grasp wrench of each pad for one DS tick: object wrench (section II-E) split by eq. 10.
+
+WrenchDistributor chains the passive DS on the object (object_wrench.py) and the contact wrench
+QP (wrench_qp.py), ramps the grasp in after contact and moves each pad's moment to its tool point,
+the form the arm controllers apply through J^T.
+"""
+
+from dataclasses import dataclass
+
+from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.exceptions import SolverError
+from dual_arm_control.core.object_wrench import (box_inertia, desired_object_wrench,
+                                                 ObjectWrenchConfig)
+from dual_arm_control.core.phases import Phase
+from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.wrench_qp import (ContactWrenchQP, pad_contact_geometry,
+                                             WrenchQPConfig)
+import numpy as np
+
+GRASPING_PHASES = (Phase.CONTACT, Phase.MANIPULATE)
+# Pad wrenches are rounded to 10 uN / 10 uN m: proxsuite's last bits depend on the heap
+# alignment of its Eigen buffers (~1e-12 run to run), and rounding far below any physical
+# effect keeps lockstep runs bit-identical.
+WRENCH_DECIMALS = 5
+
+
+def wrench_about_tool(wrench, p_world_contact, p_world_tool):
+    """Return a pad wrench (6,) with its moment moved from the contact point to the tool."""
+    force = np.asarray(wrench[:3], dtype=float)
+    moment = np.asarray(wrench[3:], dtype=float) + np.cross(
+        np.asarray(p_world_contact) - np.asarray(p_world_tool), force)
+    return np.concatenate((force, moment))
+
+
+@dataclass(frozen=True)
+class WrenchDistributorConfig:
+    """
+    Wrench distribution around the QP (SI units).
+
+    Fields: ramp_time_constant s > 0, the grasp wrench rises as 1 - exp(-t / tau) after contact
+    (and drops to zero at once outside CONTACT / MANIPULATE); qp and object: the QP's and the
+    object wrench's configs.
+    """
+
+    ramp_time_constant: float = 0.02
+    qp: WrenchQPConfig = WrenchQPConfig()
+    object: ObjectWrenchConfig = ObjectWrenchConfig()  # noqa: A003
+
+    def __post_init__(self):
+        check_range('ramp_time_constant', self.ramp_time_constant, 0.0, 1.0, 's',
+                    low_open=True)
+
+
+@dataclass(frozen=True)
+class DistributedWrenches:
+    """Per-arm pad wrenches (6,) on the object [N, N m], world, and the QP's report."""
+
+    wrenches: dict
+    object_wrench: np.ndarray
+    gain: float
+    feasible: bool
+    status: str
+
+
+class WrenchDistributor:
+    """Object wrench (passive DS on the object, section II-E) split over the pads (eq. 10)."""
+
+    def __init__(self, config, object_mass, object_size):
+        self._config = config
+        self._qp = ContactWrenchQP(config.qp)
+        self._mass = float(object_mass)
+        self._size = np.asarray(object_size, dtype=float)
+        self._inertia_object = box_inertia(self._mass, self._size)
+        self._gain = 0.0
+
+    def reconfigure(self, config):
+        """Use new weights, limits and gains from the next tick on."""
+        self._config = config
+        self._qp = ContactWrenchQP(config.qp)
+
+    def step(self, phase, p_world_tools, R_world_tools, p_world_object, R_world_object,
+             v_world_object, w_world_object, v_world_desired, w_world_desired, dt):
+        """Return the DistributedWrenches of one tick; zero wrenches outside grasp phases."""
+        zero = {arm: np.zeros(6) for arm in ARMS}
+        if phase not in GRASPING_PHASES:
+            self._gain = 0.0
+            return DistributedWrenches(zero, np.zeros(6), 0.0, True, 'not grasping')
+        self._gain += (1.0 - self._gain) * -np.expm1(-dt / self._config.ramp_time_constant)
+        inertia_world = R_world_object @ self._inertia_object @ R_world_object.T
+        object_wrench = desired_object_wrench(v_world_object, w_world_object, v_world_desired,
+                                              w_world_desired, self._mass, inertia_world,
+                                              self._config.object)
+        contacts = {arm: pad_contact_geometry(arm, p_world_tools[arm], R_world_tools[arm],
+                                              p_world_object, R_world_object, self._size)
+                    for arm in ARMS}
+        try:
+            result = self._qp.contact_wrenches(object_wrench, p_world_object, contacts)
+        except SolverError as error:
+            return DistributedWrenches(zero, object_wrench, self._gain, False, str(error))
+        wrenches = {arm: np.round(self._gain * wrench_about_tool(
+            result.wrenches[arm], contacts[arm].p_world_contact, p_world_tools[arm]),
+            WRENCH_DECIMALS) for arm in ARMS}
+        return DistributedWrenches(wrenches, object_wrench, self._gain, result.feasible,
+                                   result.status)

@@ -1,0 +1,63 @@
+"""
+Time on the FRI grid: nanoseconds, the tick schedule of slower loops, estimates at a cycle.
+
+Every process computes the same ticks from the same cycle stamps, which is what keeps a
+multi-process lockstep run and an in-process run on the same schedule.
+"""
+
+from dual_arm_control.core.geometry import rotation_exp
+
+NANOSECONDS_PER_SECOND = 1_000_000_000
+
+
+def seconds_to_ns(seconds):
+    """Return a time in seconds as integer nanoseconds (rounded, so 0.002 * k stays exact)."""
+    return int(round(seconds * NANOSECONDS_PER_SECOND))
+
+
+class TickSchedule:
+    """
+    Which FRI cycles carry a tick of a slower loop (DS and QP at 200 Hz on a 2 ms FRI grid).
+
+    A tick is due on the first cycle of each period of the loop's time grid (t // period
+    increases), so the loop keeps its rate on average (ticks at 0, 6, 10, 16, 20 ms for 5 ms
+    on a 2 ms grid) and every process that sees the same cycle stamps computes the same
+    ticks. Time going backwards (a simulation reset) starts the schedule again.
+    """
+
+    def __init__(self, period):
+        self.period_ns = seconds_to_ns(period)
+        self.last_tick_ns = None
+
+    def went_back(self, t_ns):
+        """Return True if t_ns [ns] is earlier than the last tick (the clock went back)."""
+        return self.last_tick_ns is not None and t_ns < self.last_tick_ns
+
+    def due(self, t_ns):
+        """Return True if a tick is due at t_ns [ns] (does not record it)."""
+        if self.last_tick_ns is None or self.went_back(t_ns):
+            return True
+        return t_ns // self.period_ns > self.last_tick_ns // self.period_ns
+
+    def take(self, t_ns):
+        """Record a tick at t_ns; return the time since the previous tick [s]."""
+        fresh = self.last_tick_ns is None or t_ns <= self.last_tick_ns
+        elapsed_ns = self.period_ns if fresh else t_ns - self.last_tick_ns
+        self.last_tick_ns = t_ns
+        return elapsed_ns / NANOSECONDS_PER_SECOND
+
+    def reset(self):
+        """Forget the previous tick."""
+        self.last_tick_ns = None
+
+
+def object_state_at(state, t_ns):
+    """
+    Return (p, R, v, w) of a stamped object estimate predicted to t_ns with its own twist.
+
+    state: (stamp_ns, p_world (3,) [m], R_world (3, 3), v_world (3,) [m/s], w_world (3,)
+    [rad/s]); constant linear and angular velocity over the few milliseconds of the gap.
+    """
+    state_ns, p_world, R_world, v_world, w_world = state
+    dt = (t_ns - state_ns) / NANOSECONDS_PER_SECOND
+    return p_world + v_world * dt, rotation_exp(w_world * dt) @ R_world, v_world, w_world
