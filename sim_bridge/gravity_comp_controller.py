@@ -13,7 +13,7 @@ import sys
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError
 from dual_arm_control.description.cell import arm_model
-from dual_arm_control.nodes.common import create_topic_publisher, run_node
+from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import parameter_descriptor
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult

@@ -27,7 +27,7 @@ from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, offered_qo
                                           split_path)
 from dual_arm_control.graph import full_graph, run_parameters
 from dual_arm_control.nodes.bag_play import main as bag_play_main, split_arguments
-from dual_arm_control.nodes.common import stamp_ns
+from dual_arm_control.nodes.messages import stamp_ns
 from graph_helpers import (GraphProbe, parameter_arguments, ProcessGroup, record_episode,
                            ros_environment)
 import pytest

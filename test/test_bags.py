@@ -24,7 +24,7 @@ from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, METADATA_N
                                           split_path)
 from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import full_graph, RECORDER_NODE
-from dual_arm_control.nodes.common import PUBLISHED_COUNTS_PREFIX
+from dual_arm_control.nodes.process import PUBLISHED_COUNTS_PREFIX
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from graph_helpers import GraphProbe, record_episode, ros_environment
 from mcap.exceptions import McapError

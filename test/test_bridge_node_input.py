@@ -8,14 +8,16 @@ executor plays the controllers, so each step of the lockstep protocol can be che
 import math
 
 from dual_arm_control import contract
-from dual_arm_control.nodes.common import stamp_ns, time_msg
+from dual_arm_control.nodes.messages import stamp_ns, time_msg
+from dual_arm_control.runtime.fri import command_refusal
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from sim_bridge.bridge_node import command_refusal, parameter_problem, SimBridge
+from sim_bridge.bridge_node import SimBridge
+from sim_bridge.bridge_parameters import parameter_problem
 from std_srvs.srv import Trigger
 
 NAMES = contract.joint_names('left')
@@ -28,7 +30,9 @@ SPIN_TIMEOUT = 10.0
     (NAMES, [0.0] * 6, 'wrong_length'),
     (NAMES, [0.0] * 8, 'wrong_length'),
     ([], [0.0] * 7, 'joint_names'),
-    (NAMES[1:] + NAMES[:1], [0.0] * 7, 'joint_names'),
+    (NAMES[1:] + NAMES[:1], [0.0] * 7, None),
+    (NAMES + ['gripper'], [0.0] * 8, None),
+    (NAMES[:6] + NAMES[:1], [0.0] * 7, 'joint_names'),
     (contract.joint_names('right'), [0.0] * 7, 'joint_names'),
     (NAMES[:6], [0.0] * 7, 'joint_names'),
     (NAMES, [0.0, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0], 'non_finite'),
@@ -112,22 +116,22 @@ def test_lockstep_advances_only_when_both_arms_answered(graph):
     hold = {arm: bridge.twin.hold_torques(arm) for arm in contract.ARMS}
 
     controllers.send('left', first_stamp, hold['left'])
-    assert probe.spin_until(lambda: bridge.counters['left'].accepted == 1, SPIN_TIMEOUT)
+    assert probe.spin_until(lambda: bridge.fri.counters['left'].accepted == 1, SPIN_TIMEOUT)
     controllers.send('right', time_msg(1_000_000_000), hold['right'])
-    assert probe.spin_until(lambda: bridge.counters['right'].ignored == 1, SPIN_TIMEOUT)
-    assert bridge.twin.time == 0.0 and bridge.cycles == 0
+    assert probe.spin_until(lambda: bridge.fri.counters['right'].ignored == 1, SPIN_TIMEOUT)
+    assert bridge.twin.time == 0.0 and bridge.fri.cycles == 0
 
     controllers.send('right', first_stamp, [math.nan] * 7)
-    assert probe.spin_until(lambda: bridge.cycles == 1, SPIN_TIMEOUT)
+    assert probe.spin_until(lambda: bridge.fri.cycles == 1, SPIN_TIMEOUT)
     assert bridge.twin.time == pytest.approx(bridge.fri_period)
-    assert bridge.counters['right'].refused['non_finite'] == 1
+    assert bridge.fri.counters['right'].refused['non_finite'] == 1
     assert probe.spin_until(
         lambda: stamp_ns(controllers.states['right'][-1].header.stamp) == 2_000_000,
         SPIN_TIMEOUT)
 
     controllers.send('left', first_stamp, hold['left'])
-    assert probe.spin_until(lambda: bridge.counters['left'].ignored == 1, SPIN_TIMEOUT)
-    assert bridge.cycles == 1
+    assert probe.spin_until(lambda: bridge.fri.counters['left'].ignored == 1, SPIN_TIMEOUT)
+    assert bridge.fri.cycles == 1
 
 
 def test_lockstep_republishes_an_unanswered_state(graph):
@@ -135,7 +139,7 @@ def test_lockstep_republishes_an_unanswered_state(graph):
     controllers = Controllers(probe)
     assert probe.spin_until(lambda: len(controllers.states['right']) >= 3, SPIN_TIMEOUT)
     stamps = {stamp_ns(msg.header.stamp) for msg in controllers.states['right']}
-    assert stamps == {0} and bridge.cycles == 0
+    assert stamps == {0} and bridge.fri.cycles == 0
 
 
 def test_runtime_parameters(graph):
@@ -176,7 +180,7 @@ def test_reset_service_returns_to_the_initial_state(graph):
     initial = {arm: bridge.twin.joint_state(arm).position.copy() for arm in contract.ARMS}
     for arm in contract.ARMS:
         controllers.send(arm, time_msg(0), np.zeros(7))
-    assert probe.spin_until(lambda: bridge.cycles == 1, SPIN_TIMEOUT)
+    assert probe.spin_until(lambda: bridge.fri.cycles == 1, SPIN_TIMEOUT)
     assert bridge.twin.time > 0.0
     response = call(probe, contract.SIM_RESET_SERVICE)
     assert response.success, response.message

@@ -72,10 +72,10 @@ def test_lockstep_runs_are_bit_identical(tmp_path, ros_domain):
         assert np.array_equal(first[key], second[key]), key
 
 
-BAD_COMMANDS = ('nan', 'inf', 'short', 'long', 'unknown_names', 'misordered_names', 'no_names')
+BAD_COMMANDS = ('nan', 'inf', 'short', 'long', 'unknown_names', 'duplicate_names', 'no_names')
 REASON_OF = {'nan': 'non_finite', 'inf': 'non_finite', 'short': 'wrong_length',
              'long': 'wrong_length', 'unknown_names': 'joint_names',
-             'misordered_names': 'joint_names', 'no_names': 'joint_names'}
+             'duplicate_names': 'joint_names', 'no_names': 'joint_names'}
 BAD_CYCLES = 350
 OVER_LIMIT_CYCLES = 10
 BAD_RUN_CYCLES = 400
@@ -104,8 +104,8 @@ def bad_command(kind, stamp, names, torque_limits):
         efforts = efforts + [0.0]
     elif kind == 'unknown_names':
         names[6] = 'right_A8'
-    elif kind == 'misordered_names':
-        names[0], names[1] = names[1], names[0]
+    elif kind == 'duplicate_names':
+        names[1] = names[0]
     elif kind == 'no_names':
         names = []
     elif kind == 'over_limit':

@@ -16,7 +16,7 @@ import time
 from conftest import SOURCE_ROOT
 from dual_arm_control import contract
 from dual_arm_control.benchmarks.graph_bench import child_pids
-from dual_arm_control.nodes.common import stamp_ns
+from dual_arm_control.nodes.messages import stamp_ns
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest

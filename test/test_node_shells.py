@@ -9,7 +9,7 @@ objects the nodes wrap, called directly with the same inputs.
 
 import math
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.catalogue import object_spec
 from dual_arm_control.core.geometry import (matrix_to_quat_xyzw, quat_xyzw_to_matrix,
@@ -18,12 +18,12 @@ from dual_arm_control.core.passive_control import (hold_torque, PassiveControlle
                                                    PassiveControllerConfig)
 from dual_arm_control.core.tracker import TrackerConfig
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.nodes.common import fill_odometry, seconds_to_ns, stamp_ns, time_msg
 from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
+from dual_arm_control.nodes.messages import fill_odometry, stamp_ns, time_msg
 from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
 from dual_arm_control.nodes.passive_controller import PassiveControllerNode
 from dual_arm_control.nodes.wrench_qp import WrenchQPNode
-from dual_arm_control.runtime.timing import TickSchedule
+from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import scenario_path
 from graph_helpers import GraphProbe
 import numpy as np
@@ -143,10 +143,10 @@ def tracker(harness_factory):
 def feed_sample(harness, t_ns, position, quat_xyzw):
     """Send one sample; wait until the tracker answered or refused it."""
     node = harness.node
-    handled = len(harness.received['/object/state']) + node.refusals.total
+    handled = len(harness.received['/object/state']) + node.step.refusals.total
     harness.send('/mocap/object_pose', mocap_sample(t_ns, position, quat_xyzw))
     assert harness.spin_until(
-        lambda: len(harness.received['/object/state']) + node.refusals.total > handled)
+        lambda: len(harness.received['/object/state']) + node.step.refusals.total > handled)
 
 
 def test_tracker_answers_every_valid_sample_with_its_stamp(tracker):
@@ -170,10 +170,10 @@ def test_tracker_answers_every_valid_sample_with_its_stamp(tracker):
 
     answers = tracker.received['/object/state']
     assert [stamp_ns(msg.header.stamp) for msg in answers] == sent
-    assert tracker.node.refusals.counts == {'non_finite': 2, 'zero_quaternion': 1,
-                                            'old_stamp': 1}
-    assert tracker.node.counters['samples_rejected_outlier'] == 1
-    assert tracker.node.counters['samples_used'] == len(sent) - 1
+    assert tracker.node.step.refusals.counts == {'non_finite': 2, 'zero_quaternion': 1,
+                                                 'old_stamp': 1}
+    assert tracker.node.step.counters['samples_rejected_outlier'] == 1
+    assert tracker.node.step.counters['samples_used'] == len(sent) - 1
     outlier_answer = answers[sent.index(120 * SAMPLE_PERIOD_NS)].pose.pose.position
     # The 0.3 m jump is gated out: the answer is the prediction, within a few noise sigmas.
     assert np.linalg.norm([outlier_answer.x, outlier_answer.y, outlier_answer.z]
@@ -205,7 +205,7 @@ def test_tracker_parameters_refused_with_reason_and_applied_at_rest(tracker):
     for k in range(3):
         feed_sample(tracker, k * SAMPLE_PERIOD_NS, *noisy_pose(rng))
     assert node.config.position_noise == 0.001 and node.pending_config is None
-    assert node.counters['config_changes_applied'] == 1
+    assert node.step.counters['config_changes_applied'] == 1
 
 
 def test_tracker_restarts_when_the_clock_goes_back(tracker):
@@ -216,9 +216,9 @@ def test_tracker_restarts_when_the_clock_goes_back(tracker):
     # 3 s back is a reset (restart, answered); 5 ms back after it is a late sample (refused).
     assert [stamp_ns(m.header.stamp) for m in tracker.received['/object/state']] == [
         late_ns, late_ns + SAMPLE_PERIOD_NS, SAMPLE_PERIOD_NS, 2 * SAMPLE_PERIOD_NS]
-    assert tracker.node.counters['time_resets'] == 1
-    assert tracker.node.counters['track_starts'] == 2
-    assert tracker.node.refusals.counts == {'old_stamp': 1}
+    assert tracker.node.step.counters['time_resets'] == 1
+    assert tracker.node.step.counters['track_starts'] == 2
+    assert tracker.node.step.refusals.counts == {'old_stamp': 1}
 
 
 # -- passive_controller --------------------------------------------------------------------------
@@ -324,7 +324,7 @@ def test_controller_waits_for_ds_and_wrench_on_lockstep_ticks(lockstep_controlle
     controller.send('/left/joint_states', joint_state(0, q, dq))
     assert controller.spin_until(lambda: node.awaited_tick_ns == 0)
     controller.send('/left/ds_command', ds_command(0, *command))
-    assert controller.spin_until(lambda: node.counters['ds_commands_received'] == 1)
+    assert controller.spin_until(lambda: node.step.counters['ds_commands_received'] == 1)
     controller.spin_quietly()
     assert commands == []
     controller.send('/left/contact_wrench', contact_wrench(0, wrench))
@@ -347,31 +347,30 @@ def test_controller_waits_for_ds_and_wrench_on_lockstep_ticks(lockstep_controlle
     controller.send('/left/contact_wrench', contact_wrench(TICK_PERIOD_NS, wrench))
     assert controller.spin_until(lambda: len(commands) == 4)
     # The NaN command is refused but ends the wait; the newest valid command (6 ms old) is used.
-    assert node.refusals.counts == {'ds_command': 1}
+    assert node.step.refusals.counts == {'ds_command': 1}
     np.testing.assert_allclose(efforts(commands[3]), expected_torque(q, dq, command, wrench),
                                rtol=0.0, atol=1e-9)
-    assert node.counters['holds_no_command'] == node.counters['holds_stale_command'] == 0
+    assert node.step.counters['holds_no_command'] == node.step.counters['holds_stale_command'] == 0
 
 
 def test_controller_holds_without_fresh_command_and_refuses_nan(controller):
     node, commands = controller.node, controller.received['/left/torque_command']
     q, dq, command, wrench = controller_inputs(2)
-    refused_before = 1 if node.lockstep else 0
     if node.lockstep:
         controller.send('/left/ds_command', ds_command(0, np.full(3, math.nan), *command[1:]))
         controller.send('/left/contact_wrench', contact_wrench(0, np.full(6, math.nan)))
-        assert controller.spin_until(lambda: node.refusals.total == 2)
+        assert controller.spin_until(lambda: node.step.refusals.total == 2)
     controller.send('/left/joint_states', joint_state(0, q, dq))
     assert controller.spin_until(lambda: len(commands) == 1)
     np.testing.assert_allclose(efforts(commands[0]), expected_hold(q, dq), rtol=0.0,
                                atol=1e-9)
-    assert node.counters['holds_no_command'] == 1
+    assert node.step.counters['holds_no_command'] == 1
 
     controller.send('/left/ds_command', ds_command(2_000_000, *command))
     controller.send('/left/contact_wrench', contact_wrench(2_000_000, wrench))
     assert controller.spin_until(
-        lambda: node.counters['ds_commands_received']
-        == node.counters['contact_wrenches_received'] == refused_before + 1)
+        lambda: node.step.counters['ds_commands_received']
+        == node.step.counters['contact_wrenches_received'] == 1)
     controller.send('/left/joint_states', joint_state(2_000_000, q, dq))
     assert controller.spin_until(lambda: len(commands) == 2)
     np.testing.assert_allclose(efforts(commands[1]), expected_torque(q, dq, command, wrench),
@@ -387,17 +386,18 @@ def test_controller_holds_without_fresh_command_and_refuses_nan(controller):
     assert controller.spin_until(lambda: len(commands) == 3)
     np.testing.assert_allclose(efforts(commands[2]), expected_hold(q, dq), rtol=0.0,
                                atol=1e-9)
-    assert node.counters['holds_stale_command'] == 1
+    assert node.step.counters['holds_stale_command'] == 1
 
     bad_state = joint_state(stale_ns + 2_000_000, q, dq)
     bad_state.velocity[3] = math.nan
     controller.send('/left/joint_states', bad_state)
-    assert controller.spin_until(lambda: node.refusals.counts.get('joint_state') == 1)
+    assert controller.spin_until(lambda: node.step.refusals.counts.get('joint_state') == 1)
     controller.spin_quietly()
     assert len(commands) == 3
     assert all(np.all(np.isfinite(efforts(msg))) for msg in commands)
     if node.lockstep:
-        assert node.refusals.counts == {'ds_command': 2, 'contact_wrench': 2, 'joint_state': 1}
+        assert node.step.refusals.counts == {'ds_command': 2, 'contact_wrench': 2,
+                                             'joint_state': 1}
 
 
 def test_controller_parameters(controller):
@@ -414,8 +414,8 @@ def test_controller_parameters(controller):
     q, dq, command, wrench = controller_inputs(3)
     controller.send('/left/ds_command', ds_command(0, *command))
     controller.send('/left/contact_wrench', contact_wrench(0, wrench))
-    assert controller.spin_until(lambda: node.counters['ds_commands_received']
-                                 == node.counters['contact_wrenches_received'] == 1)
+    assert controller.spin_until(lambda: node.step.counters['ds_commands_received']
+                                 == node.step.counters['contact_wrenches_received'] == 1)
     controller.send('/left/joint_states', joint_state(0, q, dq))
     assert controller.spin_until(lambda: len(commands) == 1)
     assert node.controller.config.damping_along == 250.0
@@ -464,7 +464,10 @@ def send_tick(harness, t_ns, phase, object_velocity=(0.0, 0.0, 0.0)):
     desired = contract.OBJECT_DESIRED_TWIST.msg_type()
     desired.header.stamp = time_msg(t_ns)
     harness.send('/object/desired_twist', desired)
-    phase_msg = DiagnosticArray(status=[DiagnosticStatus(name='dual_arm/phase', message=phase)])
+    phase_msg = DiagnosticArray(status=[DiagnosticStatus(
+        name='dual_arm/phase', message=phase,
+        values=[KeyValue(key='task', value='pick_and_toss'),
+                KeyValue(key='time_in_phase', value='0.000000')])])
     phase_msg.header.stamp = time_msg(t_ns)
     harness.send('/dual_arm/phase', phase_msg)
     for arm in contract.ARMS:
@@ -506,7 +509,7 @@ def test_wrench_qp_zero_outside_grasp_and_squeeze_in_manipulate(wrench_qp):
     assert 30.0 - 1e-3 <= wrenches['right'][1] <= 45.0
     np.testing.assert_allclose(net_force, [0.0, 0.0, mass * GRAVITY], atol=1e-3)
     np.testing.assert_allclose(net_moment, np.zeros(3), atol=1e-3)
-    assert wrench_qp.node.counters['infeasible_ticks'] == 0
+    assert wrench_qp.node.step.counters['infeasible_ticks'] == 0
 
     wrenches = send_tick(wrench_qp, t_ns, 'release')
     assert all(np.array_equal(w, np.zeros(6)) for w in wrenches.values())
@@ -532,7 +535,7 @@ def test_wrench_qp_parameters(wrench_qp):
     for phase in ['standby'] + ['manipulate'] * 40:
         wrenches = send_tick(wrench_qp, t_ns, phase, object_velocity=(0.0, 0.0, 0.1))
         t_ns += TICK_PERIOD_NS
-    assert node.config.qp.squeeze_force == 36.0 and node.object_mass == 1.5
+    assert node.config.qp.squeeze_force == 36.0 and node.step.object_mass == 1.5
     # Net force = m g up minus the object DS damping on the 0.1 m/s upward object velocity.
     net_force = wrenches['left'][:3] + wrenches['right'][:3]
     expected_z = 1.5 * GRAVITY - node.config.object.linear_damping * 0.1

@@ -17,7 +17,7 @@ import time
 
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import InputError
-from dual_arm_control.nodes.common import recorder_has_matched, recorder_matched_counts
+from dual_arm_control.nodes.recorder_status import recorder_has_matched, recorder_matched_counts
 from dual_arm_control.tools.param import (coerce_value, describe_value, dump_text,
                                           flat_parameters, main, nested_parameters,
                                           parameter_changes, parameter_message,

@@ -27,7 +27,7 @@ from dual_arm_control.bags.reader import (BagReader, parse_remaps, playback_wind
 from dual_arm_control.bags.schema import first_field_type, HEADER_TYPE
 from dual_arm_control.bags.writer import header_stamp_ns
 from dual_arm_control.nodes.bag_record import message_class
-from dual_arm_control.nodes.common import StopRequest
+from dual_arm_control.nodes.process import StopRequest
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException

@@ -20,7 +20,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.writer import available_compressions, BagWriter, DEFAULT_CHUNK_SIZE
-from dual_arm_control.nodes.common import run_node
+from dual_arm_control.nodes.process import run_node
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args

@@ -3,7 +3,7 @@
 from dual_arm_control.contract import ARMS, WORLD_FRAME
 from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.exceptions import InputError
-from dual_arm_control.nodes.common import set_vector3
+from dual_arm_control.nodes.messages import set_vector3
 from geometry_msgs.msg import Point
 from visualization_msgs.msg import Marker, MarkerArray
 

@@ -51,13 +51,17 @@ class TickSchedule:
         self.last_tick_ns = None
 
 
-def object_state_at(state, t_ns):
+def estimate_at(estimate, t_ns):
     """
-    Return (p, R, v, w) of a stamped object estimate predicted to t_ns with its own twist.
+    Return (p, R, v, w) of an ObjectState predicted to t_ns with its own twist.
 
-    state: (stamp_ns, p_world (3,) [m], R_world (3, 3), v_world (3,) [m/s], w_world (3,)
-    [rad/s]); constant linear and angular velocity over the few milliseconds of the gap.
+    Constant linear and angular velocity over the few milliseconds between the estimate's
+    stamp and t_ns; at the estimate's own stamp the values are returned unchanged.
     """
-    state_ns, p_world, R_world, v_world, w_world = state
-    dt = (t_ns - state_ns) / NANOSECONDS_PER_SECOND
-    return p_world + v_world * dt, rotation_exp(w_world * dt) @ R_world, v_world, w_world
+    dt = (t_ns - estimate.stamp_ns) / NANOSECONDS_PER_SECOND
+    R_world = estimate.R_world_object
+    if dt == 0.0:
+        return estimate.position, R_world, estimate.linear_velocity, estimate.angular_velocity
+    return (estimate.position + estimate.linear_velocity * dt,
+            rotation_exp(estimate.angular_velocity * dt) @ R_world,
+            estimate.linear_velocity, estimate.angular_velocity)

@@ -1,0 +1,186 @@
+"""
+Messages <-> runtime signals: the only place that knows both.
+
+Every field is copied as float64 both ways, so a signal that crosses a topic arrives with the
+same bits it left with. Reading a message validates it through the signal's constructor, which
+raises InputError naming the problem. Stamps are integer nanoseconds.
+"""
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from dual_arm_control import contract
+from dual_arm_control.core.geometry import matrix_to_quat_xyzw
+from dual_arm_control.runtime.signals import (arm_command_sample, joint_state_sample,
+                                              no_object_state, object_state, phase_sample,
+                                              pose_sample, twist_sample, wrench_sample)
+from dual_arm_control.runtime.timing import NANOSECONDS_PER_SECOND
+import numpy as np
+from std_msgs.msg import Header
+
+
+def time_msg(stamp_ns):
+    """Return a builtin_interfaces/Time for a time in integer nanoseconds."""
+    seconds, nanoseconds = divmod(int(stamp_ns), NANOSECONDS_PER_SECOND)
+    return Time(sec=seconds, nanosec=nanoseconds)
+
+
+def stamp_ns(stamp):
+    """Return a builtin_interfaces/Time as integer nanoseconds."""
+    return stamp.sec * NANOSECONDS_PER_SECOND + stamp.nanosec
+
+
+def header(stamp, frame_id=contract.WORLD_FRAME):
+    """Return a std_msgs/Header with a stamp in nanoseconds and a frame."""
+    return Header(stamp=time_msg(stamp), frame_id=frame_id)
+
+
+def vector3(msg):
+    """Return a geometry_msgs Vector3/Point as a (3,) array."""
+    return np.array([msg.x, msg.y, msg.z], dtype=float)
+
+
+def set_vector3(msg, values):
+    """Write a (3,) array into a Vector3/Point message."""
+    msg.x, msg.y, msg.z = (float(v) for v in values)
+
+
+def quaternion(msg):
+    """Return a geometry_msgs Quaternion as (x, y, z, w)."""
+    return np.array([msg.x, msg.y, msg.z, msg.w], dtype=float)
+
+
+def set_quaternion(msg, quat_xyzw):
+    """Write (x, y, z, w) into a Quaternion message."""
+    msg.x, msg.y, msg.z, msg.w = (float(v) for v in quat_xyzw)
+
+
+def set_pose(msg, position, quat_xyzw):
+    """Write a position and an (x, y, z, w) quaternion into a Pose message."""
+    set_vector3(msg.position, position)
+    set_quaternion(msg.orientation, quat_xyzw)
+
+
+def set_odometry(msg, position, quat_xyzw, linear, angular):
+    """Write a pose (position, quaternion) and twist into an Odometry message."""
+    set_pose(msg.pose.pose, position, quat_xyzw)
+    set_vector3(msg.twist.twist.linear, linear)
+    set_vector3(msg.twist.twist.angular, angular)
+
+
+def fill_odometry(msg, position, R_world, linear, angular):
+    """Write a pose (position, rotation matrix) and twist into an Odometry message."""
+    set_odometry(msg, position, matrix_to_quat_xyzw(R_world), linear, angular)
+
+
+def set_wrench(msg, wrench):
+    """Write a (6,) [force; torque] array into a Wrench message."""
+    set_vector3(msg.force, wrench[:3])
+    set_vector3(msg.torque, wrench[3:])
+
+
+def joint_state_of(msg, expected_names):
+    """Return the JointStateSample of expected_names in a JointState (matched by name)."""
+    return joint_state_sample(stamp_ns(msg.header.stamp), msg.name, msg.position,
+                              msg.velocity, msg.effort, expected_names)
+
+
+def fill_joint_state(msg, names, sample):
+    """Write a JointStateSample (positions, velocities, efforts of names) into a JointState."""
+    msg.header.stamp = time_msg(sample.stamp_ns)
+    msg.name = list(names)
+    msg.position = sample.position.tolist()
+    msg.velocity = sample.velocity.tolist()
+    msg.effort = sample.effort.tolist()
+
+
+def wrench_of(msg):
+    """Return the WrenchSample of a WrenchStamped."""
+    return wrench_sample(stamp_ns(msg.header.stamp), vector3(msg.wrench.force),
+                         vector3(msg.wrench.torque))
+
+
+def fill_wrench(msg, sample):
+    """Write a WrenchSample into a WrenchStamped (frame left as set)."""
+    msg.header.stamp = time_msg(sample.stamp_ns)
+    set_wrench(msg.wrench, sample.wrench)
+
+
+def pose_of(msg):
+    """Return the PoseSample of a PoseStamped."""
+    return pose_sample(stamp_ns(msg.header.stamp), vector3(msg.pose.position),
+                       quaternion(msg.pose.orientation))
+
+
+def fill_pose(msg, sample):
+    """Write a PoseSample into a PoseStamped (frame left as set)."""
+    msg.header.stamp = time_msg(sample.stamp_ns)
+    set_pose(msg.pose, sample.position, sample.quat_xyzw)
+
+
+def object_state_of(msg):
+    """Return the ObjectState of an /object/state Odometry (no estimate: contract flag)."""
+    stamp = stamp_ns(msg.header.stamp)
+    if msg.pose.covariance[0] == contract.NO_ESTIMATE_COVARIANCE:
+        return no_object_state(stamp)
+    return object_state(stamp, vector3(msg.pose.pose.position),
+                        quaternion(msg.pose.pose.orientation), vector3(msg.twist.twist.linear),
+                        vector3(msg.twist.twist.angular))
+
+
+def fill_object_state(msg, state):
+    """Write an ObjectState into an Odometry (no estimate: contract flag in the covariance)."""
+    msg.header.stamp = time_msg(state.stamp_ns)
+    set_odometry(msg, state.position, state.quat_xyzw, state.linear_velocity,
+                 state.angular_velocity)
+    msg.pose.covariance[0] = 0.0 if state.valid else contract.NO_ESTIMATE_COVARIANCE
+
+
+def arm_command_of(msg):
+    """Return the ArmCommandSample of a ds_command Odometry."""
+    return arm_command_sample(stamp_ns(msg.header.stamp), vector3(msg.pose.pose.position),
+                              quaternion(msg.pose.pose.orientation),
+                              vector3(msg.twist.twist.linear), vector3(msg.twist.twist.angular))
+
+
+def fill_arm_command(msg, sample):
+    """Write an ArmCommandSample into a ds_command Odometry."""
+    msg.header.stamp = time_msg(sample.stamp_ns)
+    set_odometry(msg, sample.p_world_attractor, sample.quat_xyzw, sample.v_world,
+                 sample.w_world)
+
+
+def twist_of(msg):
+    """Return the TwistSample of a TwistStamped."""
+    return twist_sample(stamp_ns(msg.header.stamp), vector3(msg.twist.linear),
+                        vector3(msg.twist.angular))
+
+
+def fill_twist(msg, sample):
+    """Write a TwistSample into a TwistStamped."""
+    msg.header.stamp = time_msg(sample.stamp_ns)
+    set_vector3(msg.twist.linear, sample.linear)
+    set_vector3(msg.twist.angular, sample.angular)
+
+
+def phase_message(sample):
+    """Return the DiagnosticArray that carries one tick's phase, task, events and reason."""
+    status = DiagnosticStatus(
+        level=DiagnosticStatus.OK, name=contract.PHASE_STATUS_NAME, hardware_id='dual_arm',
+        message=sample.phase.value,
+        values=[KeyValue(key='task', value=sample.task.value),
+                KeyValue(key='time_in_phase', value=f'{sample.time_in_phase:.6f}'),
+                KeyValue(key='events', value=','.join(sample.events)),
+                KeyValue(key='reason', value=sample.reason)])
+    return DiagnosticArray(header=header(sample.stamp_ns), status=[status])
+
+
+def phase_of(msg):
+    """Return the PhaseSample of a /dual_arm/phase message; InputError if it has none."""
+    for status in msg.status:
+        if status.name == contract.PHASE_STATUS_NAME:
+            values = {value.key: value.value for value in status.values}
+            events = tuple(e for e in values.get('events', '').split(',') if e)
+            return phase_sample(stamp_ns(msg.header.stamp), status.message,
+                                values.get('task'), values.get('time_in_phase', 'nan'),
+                                events, values.get('reason', ''))
+    return phase_sample(stamp_ns(msg.header.stamp), None, None, 'nan')

@@ -1,0 +1,121 @@
+"""
+The arm controller role: one arm's passive-DS torque per FRI cycle (core PassiveController).
+
+cycle() answers one joint state with the torque for that cycle, computed from the newest valid
+DS command and contact wrench. Stale-input policy: a DS command more than command_timeout away
+from the cycle, or none yet, gives the hold torque g(q) - D_hold dq (counted); a contact wrench
+that old is dropped (counted). The same cycle stamp again is answered with the same torque; an
+earlier stamp (simulation reset) restarts the tick schedule. In lockstep, a node answers a DS
+tick cycle only once the command and wrench of that tick arrived (needs_tick_inputs).
+"""
+
+from dual_arm_control.core.passive_control import hold_torque, PassiveController
+from dual_arm_control.runtime.inputs import RefusalCounter
+from dual_arm_control.runtime.signals import TorqueSample
+from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
+import numpy as np
+
+COUNTERS = ('cycles', 'ds_commands_received', 'contact_wrenches_received', 'repeated_answers',
+            'holds_no_command', 'holds_stale_command', 'holds_by_controller', 'saturated',
+            'no_contact_wrench', 'stale_contact_wrench', 'schedule_restarts')
+
+
+class ControllerStep:
+    """
+    The controller role of one arm.
+
+    model: the arm's ArmModel; q_null (7,) [rad]: null-space posture; config:
+    PassiveControllerConfig; ds_period [s]: the DS tick period; command_timeout [s].
+    """
+
+    def __init__(self, model, q_null, config, ds_period, command_timeout, on_refusal=None):
+        self._model = model
+        self._q_null = q_null
+        self._controller = PassiveController(model, q_null, config)
+        self._torque_limits = np.asarray(model.torque_limits, dtype=float)
+        self._pending_config = None
+        self._schedule = TickSchedule(ds_period)
+        self.command_timeout_ns = seconds_to_ns(command_timeout)
+        self._command = None
+        self._wrench = None
+        self._last_cycle_ns = None
+        self._last_answer = None
+        self.refusals = RefusalCounter(on_refusal)
+        self.counters = dict.fromkeys(COUNTERS, 0)
+
+    @property
+    def controller(self):
+        """Return the core PassiveController in use."""
+        return self._controller
+
+    def reconfigure(self, config):
+        """Use config from the next cycle on."""
+        self._pending_config = config
+
+    def set_command_timeout(self, command_timeout):
+        """Set the age [s] beyond which a DS command or contact wrench is stale."""
+        self.command_timeout_ns = seconds_to_ns(command_timeout)
+
+    def command(self, sample):
+        """Keep an ArmCommandSample as the newest DS command."""
+        self.counters['ds_commands_received'] += 1
+        self._command = sample
+
+    def wrench(self, sample):
+        """Keep a WrenchSample as the newest contact wrench."""
+        self.counters['contact_wrenches_received'] += 1
+        self._wrench = sample
+
+    def needs_tick_inputs(self, stamp_ns):
+        """Return True if cycle stamp_ns is a DS tick not answered yet (lockstep waits)."""
+        if stamp_ns == self._last_cycle_ns:
+            return False
+        return self._schedule.due(stamp_ns)
+
+    def cycle(self, joint_state):
+        """Return the TorqueSample answering a JointStateSample."""
+        stamp_ns = joint_state.stamp_ns
+        if stamp_ns == self._last_cycle_ns and self._last_answer is not None:
+            self.counters['repeated_answers'] += 1
+            return self._last_answer
+        if self._last_cycle_ns is not None and stamp_ns < self._last_cycle_ns:
+            self._schedule.reset()
+            self.counters['schedule_restarts'] += 1
+        self._last_cycle_ns = stamp_ns
+        self.counters['cycles'] += 1
+        if self._schedule.due(stamp_ns):
+            self._schedule.take(stamp_ns)
+        if self._pending_config is not None:
+            self._controller = PassiveController(self._model, self._q_null,
+                                                 self._pending_config)
+            self._pending_config = None
+        self._last_answer = TorqueSample(stamp_ns, self._torque(stamp_ns, joint_state.position,
+                                                                joint_state.velocity))
+        return self._last_answer
+
+    def _torque(self, stamp_ns, q, dq):
+        command = self._command
+        if command is None:
+            self.counters['holds_no_command'] += 1
+            return self.hold(q, dq)
+        if abs(stamp_ns - command.stamp_ns) > self.command_timeout_ns:
+            self.counters['holds_stale_command'] += 1
+            return self.hold(q, dq)
+        contact_wrench = None
+        if self._wrench is None:
+            self.counters['no_contact_wrench'] += 1
+        elif abs(stamp_ns - self._wrench.stamp_ns) > self.command_timeout_ns:
+            self.counters['stale_contact_wrench'] += 1
+        else:
+            contact_wrench = self._wrench.wrench
+        result = self._controller.torque_command(q, dq, command.v_world, command.w_world,
+                                                 command.R_world_desired, contact_wrench)
+        self.counters['holds_by_controller'] += int(result.held)
+        self.counters['saturated'] += int(result.saturated)
+        return result.torque
+
+    def hold(self, q, dq):
+        """Return the safety hold g(q) - D_hold dq within the torque limits [N m]."""
+        torque = hold_torque(self._model.gravity_torque(q), dq,
+                             self._controller.config.hold_damping)
+        return np.clip(torque, -self._torque_limits, self._torque_limits)

@@ -1,0 +1,170 @@
+"""
+The motion generator role: phases and the coordinated DS (core DualArmMotionGenerator).
+
+cycle() is called with every FRI cycle's joint states and FT readings of both arms and the
+newest object estimate. On DS ticks (TickSchedule, 200 Hz on the FRI grid) it steps the
+generator and returns the tick's outputs; the same stamp again (a republished cycle) returns
+the same outputs; other cycles return None. A cycle stamped before the last tick means the clock
+went back (simulation reset): the role starts over as at start-up.
+
+An episode starts on request, or by itself at auto_start_ns once an object estimate exists. A
+tick whose inputs the generator refuses is answered with a stop command (zero velocity at the
+current tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
+"""
+
+from dataclasses import dataclass
+
+from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.motion_generator import (ArmCommand, ArmMeasurement,
+                                                    DualArmMotionGenerator, ObjectMeasurement)
+from dual_arm_control.runtime.inputs import RefusalCounter
+from dual_arm_control.runtime.signals import arm_command_from, PhaseSample, TwistSample
+from dual_arm_control.runtime.timing import estimate_at, TickSchedule
+import numpy as np
+
+COMMANDS = ('start', 'go_home', 'reset')
+
+
+@dataclass(frozen=True)
+class MotionTick:
+    """
+    What one DS tick publishes, stamped with the tick.
+
+    commands {arm: ArmCommandSample}; desired_twist (TwistSample): the object DS; phase
+    (PhaseSample); output: the core MotionOutput (None for a stop answer), for markers.
+    """
+
+    stamp_ns: int
+    commands: dict
+    desired_twist: TwistSample
+    phase: PhaseSample
+    output: object
+
+
+class MotionGeneratorStep:
+    """
+    The motion generator role.
+
+    config: MotionGeneratorConfig; models: {arm: ArmModel} (tool and sensor poses from joint
+    positions); ds_period [s]; auto_start_ns: sim time of the automatic start (0 = only on
+    request).
+    """
+
+    def __init__(self, config, models, ds_period, auto_start_ns=0, on_refusal=None):
+        self._initial_config = config
+        self._models = models
+        self._ds_period = ds_period
+        self._auto_start_ns = int(auto_start_ns)
+        self.refusals = RefusalCounter(on_refusal)
+        self.time_resets = 0
+        self._pending_config = None
+        self._start_over(config)
+
+    def _start_over(self, config):
+        self._generator = DualArmMotionGenerator(config)
+        self._schedule = TickSchedule(self._ds_period)
+        self._started = self._auto_start_ns == 0
+        self._requests = dict.fromkeys(COMMANDS, False)
+        self._last_tick = None
+
+    @property
+    def config(self):
+        """Return the MotionGeneratorConfig in use (a pending change not included)."""
+        return self._generator.config
+
+    @property
+    def phase(self):
+        """Return the current core Phase."""
+        return self._generator.phase
+
+    @property
+    def last_tick(self):
+        """Return the MotionTick of the last tick, or None."""
+        return self._last_tick
+
+    def reconfigure(self, config):
+        """Apply config at the next tick (the phase and filters are kept)."""
+        self._pending_config = config
+
+    def request(self, command):
+        """Ask for 'start', 'go_home' or 'reset' at the next tick."""
+        if command not in COMMANDS:
+            raise ValueError(f'unknown command {command!r}; expected one of {COMMANDS}')
+        self._requests[command] = True
+
+    def is_new_tick(self, stamp_ns):
+        """Return True if the cycle stamp_ns is a DS tick not computed yet."""
+        return self._schedule.due(stamp_ns) and stamp_ns != self._schedule.last_tick_ns
+
+    def cycle(self, stamp_ns, joints, ft_wrenches, estimate):
+        """
+        Advance on one FRI cycle; return its MotionTick on DS ticks, else None.
+
+        joints {arm: JointStateSample}; ft_wrenches {arm: WrenchSample} (raw sensor readings);
+        estimate: the newest ObjectState (predicted to the cycle with its own twist), or None.
+        """
+        if self._schedule.went_back(stamp_ns):
+            self._start_over(self._pending_config or self._generator.config)
+            self._pending_config = None
+            self.time_resets += 1
+        if stamp_ns == self._schedule.last_tick_ns and self._last_tick is not None:
+            return self._last_tick
+        if not self._schedule.due(stamp_ns):
+            return None
+        dt = self._schedule.take(stamp_ns)
+        if self._pending_config is not None:
+            self._generator.reconfigure(self._pending_config)
+            self._pending_config = None
+        arms = {}
+        for arm in ARMS:
+            q = joints[arm].position
+            p_world_tool, R_world_tool = self._models[arm].tool_pose(q)
+            _, R_world_sensor = self._models[arm].sensor_pose(q)
+            arms[arm] = ArmMeasurement(p_world_tool, R_world_tool, ft_wrenches[arm].wrench,
+                                       R_world_sensor)
+        has_object = estimate is not None and estimate.valid
+        start = self._requests['start'] or (not self._started and has_object
+                                            and stamp_ns >= self._auto_start_ns)
+        self._started = self._started or start
+        try:
+            output = self._generator.step(arms, _object_measurement(estimate, stamp_ns, arms),
+                                          dt, start_episode=start,
+                                          go_home=self._requests['go_home'],
+                                          reset=self._requests['reset'])
+        except InputError as error:
+            self.refusals.refuse('tick', f'tick at {stamp_ns} ns: {error}')
+            self._last_tick = _stop_tick(stamp_ns, arms, self._generator)
+            return self._last_tick
+        self._requests = dict.fromkeys(COMMANDS, False)
+        phase = output.phase
+        reason = '' if phase.transition is None else phase.transition.reason
+        self._last_tick = MotionTick(
+            stamp_ns=stamp_ns,
+            commands={arm: arm_command_from(stamp_ns, output.commands[arm]) for arm in ARMS},
+            desired_twist=TwistSample(stamp_ns, np.asarray(output.object_velocity, float),
+                                      np.asarray(output.object_angular_velocity, float)),
+            phase=PhaseSample(stamp_ns, phase.phase, phase.task, phase.time_in_phase,
+                              phase.events, reason),
+            output=output)
+        return self._last_tick
+
+
+def _object_measurement(estimate, stamp_ns, arms):
+    """Return the estimate predicted to stamp_ns, or a stand-in between the pads without one."""
+    if estimate is None or not estimate.valid:
+        midpoint = 0.5 * (arms['left'].p_world_tool + arms['right'].p_world_tool)
+        return ObjectMeasurement(midpoint, np.eye(3), np.zeros(3))
+    position, rotation, linear, _ = estimate_at(estimate, stamp_ns)
+    return ObjectMeasurement(position, rotation, linear)
+
+
+def _stop_tick(stamp_ns, arms, generator):
+    """Return the MotionTick that stops both arms where they are (zero velocity)."""
+    commands = {arm: arm_command_from(stamp_ns, ArmCommand(
+        np.zeros(3), np.zeros(3), arms[arm].R_world_tool, arms[arm].p_world_tool))
+        for arm in ARMS}
+    phase = generator.phase
+    return MotionTick(stamp_ns, commands, TwistSample(stamp_ns, np.zeros(3), np.zeros(3)),
+                      PhaseSample(stamp_ns, phase, generator.config.task, 0.0, ('refused',),
+                                  'inputs refused: stop'), None)

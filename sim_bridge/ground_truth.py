@@ -1,0 +1,68 @@
+"""
+The simulator's ground truth on topics: object, tools, pad wrenches and pad contacts.
+
+For evaluation and recording only; no node of the control graph subscribes. Published at most
+once per `period` of sim time.
+"""
+
+from dual_arm_control import contract
+from dual_arm_control.nodes.messages import fill_odometry, set_odometry, set_vector3, time_msg
+from dual_arm_control.nodes.process import create_topic_publisher
+
+
+class Stream:
+    """A publisher of the contract and the message it reuses (filled in place, then sent)."""
+
+    def __init__(self, node, topic, arm=None, frame_id=None, child_frame_id=None):
+        self.publisher = create_topic_publisher(node, topic, arm)
+        self.msg = topic.msg_type()
+        if frame_id is not None:
+            self.msg.header.frame_id = frame_id
+        if child_frame_id is not None:
+            self.msg.child_frame_id = child_frame_id
+
+    def publish(self):
+        """Send the message as it is filled now."""
+        self.publisher.publish(self.msg)
+
+
+class GroundTruthStreams:
+    """Publishers of the twin's ground truth; publish(twin, stamp_ns) sends one set."""
+
+    def __init__(self, node):
+        self.object = Stream(node, contract.GROUND_TRUTH_OBJECT, frame_id=contract.WORLD_FRAME,
+                             child_frame_id='object')
+        self.tools, self.pad_wrenches, self.pad_contacts = {}, {}, {}
+        for arm in contract.ARMS:
+            self.tools[arm] = Stream(node, contract.GROUND_TRUTH_TOOL, arm,
+                                     frame_id=contract.WORLD_FRAME, child_frame_id=f'{arm}_tool')
+            self.pad_wrenches[arm] = Stream(node, contract.GROUND_TRUTH_PAD_WRENCH, arm,
+                                            frame_id=contract.WORLD_FRAME)
+            self.pad_contacts[arm] = Stream(node, contract.GROUND_TRUTH_PAD_CONTACT, arm)
+
+    def streams(self):
+        """Return every stream."""
+        return [self.object, *self.tools.values(), *self.pad_wrenches.values(),
+                *self.pad_contacts.values()]
+
+    def publish(self, twin, stamp_ns):
+        """Publish the twin's current ground truth stamped stamp_ns."""
+        stamp = time_msg(stamp_ns)
+        self.object.msg.header.stamp = stamp
+        set_odometry(self.object.msg, *twin.object_pose(), *twin.object_twist())
+        self.object.publish()
+        for arm in contract.ARMS:
+            p_world_tool, R_world_tool = twin.tool_pose(arm)
+            tool = self.tools[arm]
+            tool.msg.header.stamp = stamp
+            fill_odometry(tool.msg, p_world_tool, R_world_tool, *twin.tool_twist(arm))
+            tool.publish()
+            force_world, in_contact = twin.pad_contact(arm)
+            _, torque_world = twin.pad_wrench(arm)
+            wrench = self.pad_wrenches[arm]
+            wrench.msg.header.stamp = stamp
+            set_vector3(wrench.msg.wrench.force, force_world)
+            set_vector3(wrench.msg.wrench.torque, torque_world)
+            wrench.publish()
+            self.pad_contacts[arm].msg.data = bool(in_contact)
+            self.pad_contacts[arm].publish()

@@ -1,0 +1,182 @@
+"""
+The runtime's policies, without ROS: arrival barrier, signal validation, FRI cycle, controller.
+
+The FRI cycle runs on the real MuJoCo twin; the controller step on the real pinocchio model.
+"""
+
+import math
+
+from dual_arm_control.core.arms import ARMS, joint_names
+from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.passive_control import PassiveControllerConfig
+from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.runtime.controller_step import ControllerStep
+from dual_arm_control.runtime.fri import command_refusal, FriCycle
+from dual_arm_control.runtime.inputs import ArrivalBarrier, MAX_PENDING_STAMPS
+from dual_arm_control.runtime.signals import (arm_command_sample, joint_state_sample,
+                                              JointStateSample)
+from dual_arm_control.runtime.timing import seconds_to_ns
+from dual_arm_control.scenario import load_scenario
+import numpy as np
+import pytest
+from sim_bridge.twin import DualArmTwin
+
+CELL = load_cell()
+MS = 1_000_000
+
+
+# -- arrival barrier -----------------------------------------------------------------------------
+
+def test_barrier_completes_each_stamp_once_all_its_inputs_arrived_in_any_order():
+    barrier = ArrivalBarrier(lambda stamp: {'a', 'b'} | ({'c'} if stamp % (10 * MS) == 0
+                                                         else set()))
+    assert barrier.arrived(2 * MS, 'b') == []
+    assert barrier.arrived(2 * MS, 'a') == [2 * MS]
+    assert barrier.arrived(10 * MS, 'a') == []
+    assert barrier.arrived(10 * MS, 'b') == []
+    assert barrier.pending(10 * MS) == {'c'}
+    assert barrier.arrived(10 * MS, 'c') == [10 * MS]
+    assert barrier.dropped == 0
+
+
+def test_barrier_drops_older_incomplete_stamps_and_bounds_its_memory():
+    barrier = ArrivalBarrier(lambda stamp: {'a', 'b'})
+    barrier.arrived(2 * MS, 'a')
+    barrier.arrived(4 * MS, 'a')
+    assert barrier.arrived(4 * MS, 'b') == [4 * MS]
+    assert barrier.dropped == 1 and barrier.pending(2 * MS) == {'a', 'b'}
+    for k in range(MAX_PENDING_STAMPS + 10):
+        barrier.arrived((6 + 2 * k) * MS, 'a')
+    assert barrier.dropped == 1 + 10
+
+
+def test_barrier_starts_over_when_the_clock_goes_back():
+    barrier = ArrivalBarrier(lambda stamp: {'a', 'b'})
+    barrier.arrived(2000 * MS, 'a')
+    barrier.arrived(2000 * MS, 'b')
+    barrier.arrived(2002 * MS, 'a')
+    assert barrier.arrived(0, 'a') == []
+    assert barrier.arrived(0, 'b') == [0]
+    assert barrier.pending(2002 * MS) == {'a', 'b'}, 'the old timeline is forgotten'
+
+
+# -- signals -------------------------------------------------------------------------------------
+
+def test_joint_states_are_matched_by_name_in_any_order():
+    names = joint_names('left')
+    shuffled = [names[index] for index in (3, 0, 6, 1, 5, 2, 4)] + ['gripper']
+    position = [float(names.index(n)) if n in names else 99.0 for n in shuffled]
+    sample = joint_state_sample(7, shuffled, position, [0.5] * 8, [], names)
+    np.testing.assert_array_equal(sample.position, np.arange(7.0))
+    np.testing.assert_array_equal(sample.effort, np.zeros(7))
+    with pytest.raises(InputError, match=r"lacks joints \['left_A7'\]"):
+        joint_state_sample(7, names[:6], [0.0] * 6, [0.0] * 6, [], names)
+    with pytest.raises(InputError, match='velocity has 6 values, expected 7'):
+        joint_state_sample(7, names, [0.0] * 7, [0.0] * 6, [], names)
+    with pytest.raises(InputError, match='NaN or Inf'):
+        joint_state_sample(7, names, [0.0] * 6 + [math.nan], [0.0] * 7, [], names)
+
+
+def test_torque_commands_are_refused_for_a_reason():
+    names = joint_names('right')
+    assert command_refusal(names, [1.0] * 7, names) is None
+    assert command_refusal(list(reversed(names)), [1.0] * 7, names) is None
+    assert command_refusal(names, [1.0] * 6, names) == 'wrong_length'
+    assert command_refusal(names[:6] + ['left_A7'], [1.0] * 7, names) == 'joint_names'
+    assert command_refusal(names, [1.0] * 6, names) == 'wrong_length'
+    assert command_refusal(names, [1.0] * 6 + [math.inf], names) == 'non_finite'
+
+
+# -- FRI cycle -----------------------------------------------------------------------------------
+
+@pytest.fixture
+def fri():
+    return FriCycle(DualArmTwin(load_scenario('hold', cell=CELL), CELL))
+
+
+def answer_all(fri, torques):
+    for arm in ARMS:
+        fri.answer(arm, fri.awaited_ns, joint_names(arm), list(torques[arm]))
+
+
+def test_a_refused_command_holds_the_arm_for_that_cycle(fri):
+    state = fri.begin()
+    assert state.stamp_ns == 0 and set(state.joints) == set(ARMS)
+    names = joint_names('left')
+    assert not fri.answer('left', 0, names, [0.0] * 6 + [math.nan])
+    assert fri.refused('left') == 'non_finite'
+    assert fri.answer('right', 0, joint_names('right'), [0.0] * 7)
+    hold = fri.backend.hold_torques('left')
+    applied = fri.advance()
+    np.testing.assert_array_equal(applied['left'], hold)
+    np.testing.assert_array_equal(applied['right'], np.zeros(7))
+    assert fri.counters['left'].refused['non_finite'] == 1
+
+
+def test_a_missing_command_repeats_the_last_torque_once_then_holds(fri):
+    """FRI deadline policy: the previous torque for at most one cycle, then the hold."""
+    gravity = {arm: fri.backend.hold_torques(arm) for arm in ARMS}
+    fri.begin()
+    answer_all(fri, gravity)
+    fri.advance()
+    fri.begin()
+    fri.answer('left', fri.awaited_ns, joint_names('left'), list(gravity['left']))
+    applied = fri.advance()
+    np.testing.assert_array_equal(applied['right'], gravity['right'])
+    assert fri.counters['right'].previous_torque_repeats == 1
+    assert fri.counters['right'].watchdog_holds == 0
+    for _ in range(3):
+        fri.begin()
+        hold = fri.backend.hold_torques('right')
+        applied = fri.advance()
+        np.testing.assert_array_equal(applied['right'], hold)
+    assert fri.counters['right'].watchdog_holds == 3
+    assert fri.counters['right'].previous_torque_repeats == 1
+    fri.begin()
+    late_stamp = fri.awaited_ns - 2 * MS
+    fri.answer('right', late_stamp, joint_names('right'), list(gravity['right']))
+    assert fri.counters['right'].late == 1 and fri.missing() == ['left', 'right']
+
+
+# -- controller step -----------------------------------------------------------------------------
+
+@pytest.fixture
+def controller():
+    return ControllerStep(arm_model('left', CELL), CELL.arm('left').q_home,
+                          PassiveControllerConfig(), 0.005, 0.05)
+
+
+def joint_state(stamp_ns, q, dq):
+    return JointStateSample(stamp_ns, np.asarray(q, float), np.asarray(dq, float), np.zeros(7))
+
+
+def test_controller_holds_without_a_fresh_command_and_repeats_a_repeated_cycle(controller):
+    q = CELL.arm('left').q_home
+    dq = np.full(7, 0.1)
+    first = controller.cycle(joint_state(0, q, dq))
+    np.testing.assert_allclose(first.effort, controller.hold(q, dq), atol=0.0)
+    assert controller.counters['holds_no_command'] == 1
+    assert controller.cycle(joint_state(0, q, dq)) is first
+    assert controller.counters['repeated_answers'] == 1
+    controller.command(arm_command_sample(2 * MS, np.zeros(3), [0.0, 0.0, 0.0, 1.0],
+                                          [0.1, 0.0, 0.0], np.zeros(3)))
+    live = controller.cycle(joint_state(2 * MS, q, dq))
+    assert not np.allclose(live.effort, controller.hold(q, dq))
+    stale_ns = 2 * MS + seconds_to_ns(0.05) + 2 * MS
+    stale = controller.cycle(joint_state(stale_ns, q, dq))
+    np.testing.assert_allclose(stale.effort, controller.hold(q, dq), atol=0.0)
+    assert controller.counters['holds_stale_command'] == 1
+    assert all(np.isfinite(sample.effort).all() for sample in (first, live, stale))
+
+
+def test_controller_waits_for_tick_inputs_only_on_new_ticks(controller):
+    q, dq = CELL.arm('left').q_home, np.zeros(7)
+    assert controller.needs_tick_inputs(0)
+    controller.cycle(joint_state(0, q, dq))
+    assert not controller.needs_tick_inputs(0), 'a repeated cycle is answered at once'
+    assert not controller.needs_tick_inputs(2 * MS)
+    assert not controller.needs_tick_inputs(4 * MS)
+    assert controller.needs_tick_inputs(6 * MS), 'the 200 Hz grid of the DS ticks'
+    controller.cycle(joint_state(6 * MS, q, dq))
+    controller.cycle(joint_state(0, q, dq))
+    assert controller.counters['schedule_restarts'] == 1
