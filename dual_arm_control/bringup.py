@@ -1,10 +1,15 @@
 """
 dual_arm_bringup: start the graph as separate processes, run one episode, write its results.
 
-Each node runs in its own process in an isolated ROS domain with its log in OUT/logs/. Ctrl-C or
-SIGTERM stops every child within a few seconds; a node that dies makes the launcher stop the rest
-and exit non-zero. With --scenario the episode ends when the bridge reaches the scenario's
-duration; metrics.json and plots are then written to --out.
+The scenario (a file, or the name of a shipped one) and the parameter file are checked before
+any process starts. Each node runs in its own process in a ROS domain reserved for the run
+(domain_coordinator), with its log in OUT/logs/; phase changes are echoed as they happen.
+Ctrl-C or SIGTERM stops every child within a few seconds. With --scenario the episode ends when
+the bridge reaches the scenario's duration; metrics.json and plots are then written to --out.
+
+Exit codes: 0 the episode met its task criteria (or a run without scenario was stopped
+cleanly); 1 the task failed; 2 bad input (scenario, parameter file, options), nothing started;
+3 a node died, timed out or left no result; 130 interrupted during an episode.
 """
 
 import argparse
@@ -12,17 +17,25 @@ import ctypes
 import json
 import os
 from pathlib import Path
-import random
 import signal
 import subprocess
 import sys
 import time
 
+from domain_coordinator import domain_id
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.executables import EXECUTABLES
 from dual_arm_control.graph import GRAPHS, run_parameters
+from dual_arm_control.nodes.ds_motion_generator import PHASE_LOG_PREFIX
+from dual_arm_control.parameter_files import key_applies, parameter_file_problems
 from dual_arm_control.resources import config_path, load_yaml
+from dual_arm_control.scenario import load_scenario, scenario_path
 
+# Highest ROS domain id Fast DDS accepts on the default port mapping.
+MAX_DOMAIN_ID = 232
+EXIT_SUCCESS, EXIT_TASK_FAILED, EXIT_BAD_INPUT, EXIT_NODE_FAILED, EXIT_INTERRUPTED = (
+    0, 1, 2, 3, 130)
+LOG_TAIL_LINES = 8
 STOP_GRACE_PERIOD = 4.0
 RECORDER_STARTUP_TIMEOUT = 15.0
 POLL_PERIOD = 0.1
@@ -67,10 +80,8 @@ def user_parameter_names(user_parameters, spec):
     has the last word. Keys may be the node name, its namespaced name or a `/**` wildcard.
     """
     names = set()
-    full_name = f'{spec.namespace}/{spec.name}'.strip('/')
     for key, entry in user_parameters.items():
-        key = str(key).strip('/')
-        if key in ('**', spec.name, full_name, f'**/{spec.name}') and isinstance(entry, dict):
+        if key_applies(key, spec) and isinstance(entry, dict):
             names.update((entry.get('ros__parameters') or {}).keys())
     return names
 
@@ -193,19 +204,22 @@ def stop_recorder(process):
 
 def parse_arguments(argv=None):
     """Parse the launcher's command line."""
-    parser = argparse.ArgumentParser(prog='dual_arm_bringup', description=__doc__.split('\n')[1])
-    parser.add_argument('--scenario', type=Path,
-                        help='scenario YAML; runs one episode and exits (without: run until '
-                             'stopped)')
+    parser = argparse.ArgumentParser(
+        prog='dual_arm_bringup', description=__doc__.split('\n')[1],
+        epilog='exit codes: 0 success, 1 task failed, 2 bad input, 3 a node died or timed out, '
+               '130 interrupted')
+    parser.add_argument('--scenario',
+                        help='scenario YAML, or the name of a shipped one (config/scenarios); '
+                             'runs one episode and exits (without: run until stopped)')
     parser.add_argument('--out', type=Path, default=Path('runs/latest'),
                         help='output directory for logs, metrics.json and plots')
     parser.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
     parser.add_argument('--params', type=Path,
-                        help='ROS parameter YAML (ros__parameters) applied to every node')
+                        help='ROS parameter YAML (ros__parameters per node) applied last')
     parser.add_argument('--graph', choices=sorted(GRAPHS), default='full',
                         help='which node table to start')
     parser.add_argument('--domain-id', type=int,
-                        help='ROS_DOMAIN_ID for the graph (default: a random free-ish id)')
+                        help='ROS_DOMAIN_ID for the graph (default: one reserved for the run)')
     parser.add_argument('--timeout', type=float, default=600.0,
                         help='wall-clock limit of an episode [s]')
     parser.add_argument('--record', action='store_true',
@@ -214,63 +228,146 @@ def parse_arguments(argv=None):
     return parser.parse_args(argv)
 
 
+def input_problems(args):
+    """Return the problems of the scenario, parameter file and options (empty: all valid)."""
+    problems = []
+    if args.scenario is not None:
+        try:
+            load_scenario(args.scenario)
+        except ConfigError as error:
+            shipped = ', '.join(sorted(p.stem for p in config_path('scenarios').glob('*.yaml')))
+            problems.append(f'scenario: {error}' + ('' if args.scenario.is_file() else
+                                                    f' (shipped scenarios: {shipped})'))
+    if args.params is not None:
+        problems += parameter_file_problems(args.params, GRAPHS[args.graph]())
+    if args.timeout <= 0.0:
+        problems.append(f'--timeout must be > 0 s, got {args.timeout}')
+    if args.domain_id is not None and not 0 <= args.domain_id <= MAX_DOMAIN_ID:
+        problems.append(f'--domain-id must be in [0, {MAX_DOMAIN_ID}], got {args.domain_id}')
+    return problems
+
+
+class PhaseEcho:
+    """Print the phase changes a node logs (lines with PHASE_LOG_PREFIX) as they appear."""
+
+    def __init__(self, log_path):
+        self._path = log_path
+        self._offset = 0
+
+    def poll(self):
+        """Print the phase lines written since the last poll."""
+        try:
+            with open(self._path) as log:
+                log.seek(self._offset)
+                text = log.read()
+        except OSError:
+            return
+        complete, _, _ = text.rpartition('\n')
+        self._offset += len(complete) + (1 if complete else 0)
+        for line in complete.splitlines():
+            if PHASE_LOG_PREFIX in line:
+                print(f'  {line[line.index(PHASE_LOG_PREFIX):]}', flush=True)
+
+
+def log_tail(path, lines=LOG_TAIL_LINES):
+    """Return the last lines of a log file, indented, or a note that there is none."""
+    try:
+        text = Path(path).read_text().strip().splitlines()
+    except OSError:
+        return '    (no log)'
+    return '\n'.join(f'    {line}' for line in text[-lines:]) or '    (empty log)'
+
+
 def main(argv=None):
     """Run the launcher; return the process exit code."""
     args = parse_arguments(argv)
-    for path, what in ((args.scenario, 'scenario'), (args.params, 'parameter file')):
-        if path is not None and not path.is_file():
-            print(f'dual_arm_bringup: {what} {path} does not exist', file=sys.stderr)
-            return 2
+    if args.scenario is not None:
+        args.scenario = scenario_path(args.scenario).resolve()
+    problems = input_problems(args)
+    if problems:
+        for problem in problems:
+            print(f'dual_arm_bringup: {problem}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.domain_id is not None:
+        return run(args, args.domain_id)
+    with domain_id() as reserved:
+        return run(args, reserved)
+
+
+def run(args, domain):
+    """Run the graph in ROS domain `domain`; return the exit code."""
     args.out.mkdir(parents=True, exist_ok=True)
-    domain_id = args.domain_id if args.domain_id is not None else random.randint(1, 200)
     trajectory_log = (args.out / 'trajectory.npz').resolve() if args.scenario else None
-    launcher = Launcher(GRAPHS[args.graph](), args.out, domain_id, args.params,
-                        run_parameters(args.graph, args.scenario and args.scenario.resolve(),
-                                       args.mode, trajectory_log, args.record))
+    launcher = Launcher(GRAPHS[args.graph](), args.out, domain, args.params,
+                        run_parameters(args.graph, args.scenario, args.mode, trajectory_log,
+                                       args.record))
 
     def request_stop(signum, frame):
         launcher.stop_requested = True
 
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
-    print(f'dual_arm_bringup: ROS_DOMAIN_ID={domain_id}, logs in {args.out / "logs"}')
-    recorder = (start_recorder(args.out, launcher.environment(),
-                               args.scenario and args.scenario.resolve())
+    print(f'dual_arm_bringup: ROS_DOMAIN_ID={domain}, logs in {args.out / "logs"}', flush=True)
+    recorder = (start_recorder(args.out, launcher.environment(), args.scenario)
                 if args.record else None)
     if recorder is not None and recorder.poll() is not None:
-        print(f'dual_arm_bringup: bag_record exited ({recorder.returncode}), see '
-              f'{args.out / "logs" / "bag_record.log"}', file=sys.stderr)
-        return 3
+        print(f'dual_arm_bringup: bag_record exited ({recorder.returncode}):\n'
+              f'{log_tail(args.out / "logs" / "bag_record.log")}', file=sys.stderr)
+        return EXIT_NODE_FAILED
     launcher.start()
+    status = supervise(args, launcher)
+    launcher.stop()
+    if recorder is not None and stop_recorder(recorder) != 0:
+        print(f'dual_arm_bringup: bag_record failed:\n'
+              f'{log_tail(args.out / "logs" / "bag_record.log")}', file=sys.stderr)
+        status = status or EXIT_NODE_FAILED
+    if status != EXIT_SUCCESS or args.scenario is None:
+        return status
+    return _write_results(args)
+
+
+def supervise(args, launcher):
+    """Wait for the episode's end, a dead node, the timeout or a stop; return the exit code."""
     started = time.monotonic()
-    status = 0
+    phases = PhaseEcho(args.out / 'logs' / 'ds_motion_generator.log')
     while True:
+        phases.poll()
         exited = launcher.poll()
         if launcher.stop_requested:
             print('dual_arm_bringup: stop requested, shutting the graph down')
-            status = 130 if args.scenario is None else 1
-            break
+            return EXIT_INTERRUPTED if args.scenario is not None else EXIT_SUCCESS
         if exited.get('sim_bridge') == 0:
-            break
+            phases.poll()
+            return EXIT_SUCCESS
         if exited:
-            print(f'dual_arm_bringup: node(s) exited early: {exited}; stopping the graph',
-                  file=sys.stderr)
-            status = 3
-            break
+            for label, code in sorted(exited.items()):
+                print(f'dual_arm_bringup: node {label} exited with code {code}; stopping the '
+                      f'graph. Last lines of its log:\n'
+                      f'{log_tail(args.out / "logs" / f"{label}.log")}', file=sys.stderr)
+            return EXIT_NODE_FAILED
         if args.scenario is not None and time.monotonic() - started > args.timeout:
-            print(f'dual_arm_bringup: episode exceeded {args.timeout} s wall time',
-                  file=sys.stderr)
-            status = 4
-            break
+            print(f'dual_arm_bringup: the episode exceeded {args.timeout:g} s of wall time; '
+                  'stopping the graph', file=sys.stderr)
+            return EXIT_NODE_FAILED
         time.sleep(POLL_PERIOD)
-    launcher.stop()
-    if recorder is not None and stop_recorder(recorder) != 0:
-        print(f'dual_arm_bringup: bag_record failed, see {args.out / "logs" / "bag_record.log"}',
-              file=sys.stderr)
-        status = status or 3
-    if status != 0 or args.scenario is None:
-        return status
-    return _write_results(args)
+
+
+SUMMARY_FIELDS = (('contact_time_gap', 'contact gap', 1e3, 'ms'),
+                  ('impact_speed_left', 'impact left', 1.0, 'm/s'),
+                  ('impact_speed_right', 'impact right', 1.0, 'm/s'),
+                  ('max_slip', 'slip', 1e3, 'mm'),
+                  ('release_position_error', 'release error', 1e3, 'mm'),
+                  ('release_velocity_error', 'release speed error', 100.0, '%'),
+                  ('landing_error', 'landing error', 1e3, 'mm'),
+                  ('place_position_error', 'place error', 1e3, 'mm'),
+                  ('cycle_time', 'cycle time', 1.0, 's'))
+
+
+def metrics_summary(metrics):
+    """Return one line per key metric of an episode (all of them are in metrics.json)."""
+    lines = [f'  {label}: {metrics[key] * scale:.3g} {unit}'
+             for key, label, scale, unit in SUMMARY_FIELDS if metrics.get(key) is not None]
+    return '\n'.join(['dual_arm_bringup: metrics (all in metrics.json)'] + lines)
 
 
 def _write_results(args):
@@ -281,10 +378,15 @@ def _write_results(args):
                                    graph=args.graph)
     except (ConfigError, OSError, KeyError, ValueError) as error:
         print(f'dual_arm_bringup: cannot evaluate the episode: {error}', file=sys.stderr)
-        return 5
+        return EXIT_NODE_FAILED
     (args.out / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
-    print(json.dumps(metrics, indent=2))
-    return 0 if metrics.get('success') else 1
+    print(metrics_summary(metrics))
+    if metrics.get('success'):
+        print('dual_arm_bringup: episode succeeded')
+        return EXIT_SUCCESS
+    print('dual_arm_bringup: the episode did not meet its task criteria (see metrics.json)',
+          file=sys.stderr)
+    return EXIT_TASK_FAILED
 
 
 if __name__ == '__main__':

@@ -25,6 +25,7 @@ from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.runtime.controller_step import ControllerStep
 from dual_arm_control.runtime.fri import FriCycle
 from dual_arm_control.runtime.motion_step import MotionGeneratorStep
+from dual_arm_control.runtime.node_settings import COMMAND_TIMEOUT, DS_PERIOD, FRI_PERIOD
 from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.runtime.tracker_step import TrackerStep
 from dual_arm_control.runtime.wrench_step import WrenchStep
@@ -35,9 +36,9 @@ from sim_bridge.twin import DualArmTwin
 class RunnerConfig:
     """Rates, timeouts and component configs of an in-process run (periods in seconds)."""
 
-    fri_period: float = 0.002
-    ds_period: float = 0.005
-    command_timeout: float = 0.05
+    fri_period: float = FRI_PERIOD
+    ds_period: float = DS_PERIOD
+    command_timeout: float = COMMAND_TIMEOUT
     start_time: float = EPISODE_START_TIME
     motion_base: object = None
     controller: PassiveControllerConfig = field(default_factory=PassiveControllerConfig)

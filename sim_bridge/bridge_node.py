@@ -33,15 +33,15 @@ from dual_arm_control.nodes.diagnostics import diagnostic_value
 from dual_arm_control.nodes.messages import (fill_joint_state, fill_pose, fill_wrench, stamp_ns,
                                              time_msg)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
+from dual_arm_control.parameters import NodeParameters
 from dual_arm_control.runtime.fri import FriCycle, REFUSAL_REASONS
+from dual_arm_control.runtime.node_settings import node_table
 from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.scenario import load_scenario
 import numpy as np
-from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sim_bridge.bridge_parameters import declare_bridge_parameters, parameter_problem
 from sim_bridge.ground_truth import GroundTruthStreams, Stream
 from sim_bridge.lockstep_start import GraphReadiness
 from sim_bridge.twin import DualArmTwin
@@ -61,23 +61,21 @@ class SimBridge(Node):
 
     def __init__(self, node_name='sim_bridge', **node_options):
         super().__init__(node_name, **node_options)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        declare_bridge_parameters(self)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
-        value = lambda name: self.get_parameter(name).value  # noqa: E731
-        self.mode = value('mode')
-        self.fri_period = value('fri_period')
-        self.scenario = load_scenario(value('scenario'))
+        self.settings = settings = NodeParameters(self, node_table('sim_bridge').settings,
+                                                  on_change=self._on_setting)
+        self.mode = settings['mode']
+        self.fri_period = settings['fri_period']
+        self.scenario = load_scenario(settings['scenario'])
         self.twin = DualArmTwin(self.scenario, fri_period=self.fri_period)
         self.fri = FriCycle(self.twin)
         lockstep = self.mode == 'lockstep'
-        self._publish_ground_truth = value('publish_ground_truth')
-        self._duration = value('duration')
-        self._trajectory_log = value('trajectory_log')
-        self._republish_period = value('lockstep_republish_period')
-        self._wait_for_tracker = lockstep and value('lockstep_wait_for_tracker')
-        self._diagnostics_period_ns = seconds_to_ns(value('diagnostics_period'))
-        self._ground_truth_period_ns = seconds_to_ns(value('ground_truth_period'))
+        self._publish_ground_truth = settings['publish_ground_truth']
+        self._duration = settings['duration']
+        self._trajectory_log = settings['trajectory_log']
+        self._republish_period = settings['lockstep_republish_period']
+        self._wait_for_tracker = lockstep and settings['lockstep_wait_for_tracker']
+        self._diagnostics_period_ns = seconds_to_ns(settings['diagnostics_period'])
+        self._ground_truth_period_ns = seconds_to_ns(settings['ground_truth_period'])
         self.finished = False
         self.late_cycles = 0
         self._cycle = None
@@ -92,9 +90,9 @@ class SimBridge(Node):
         self._recorder = None
         self._create_interfaces()
         self._readiness = GraphReadiness(
-            self, self._streams, value('lockstep_wait_for_nodes') if lockstep else [],
-            lockstep and value('lockstep_wait_for_subscribers'),
-            lockstep and value('lockstep_wait_for_recorder'))
+            self, self._streams, settings['lockstep_wait_for_nodes'] if lockstep else [],
+            lockstep and settings['lockstep_wait_for_subscribers'],
+            lockstep and settings['lockstep_wait_for_recorder'])
         self._started = False
         self._ready_wall = None
         if not self._readiness.waits:
@@ -107,7 +105,7 @@ class SimBridge(Node):
             self._timer = self.create_timer(self.fri_period, self._on_fri_tick, clock=steady)
         self.get_logger().info(
             f'sim_bridge up: mode {self.mode}, FRI period {self.fri_period * 1e3:g} ms, scenario '
-            f'{value("scenario")}, seed {self.scenario.seed}, stops at sim time '
+            f'{settings["scenario"]}, seed {self.scenario.seed}, stops at sim time '
             f'{self.stop_time:g} s, ground truth {"on" if self._publish_ground_truth else "off"}')
 
     def _create_interfaces(self):
@@ -135,23 +133,16 @@ class SimBridge(Node):
         return [self._clock_stream, self._mocap, *self._joint_states.values(), *self._ft.values(),
                 *self._truth.streams()]
 
-    def _on_set_parameters(self, parameters):
-        for parameter in parameters:
-            problem = parameter_problem(parameter.name, parameter.value)
-            if problem is not None:
-                return SetParametersResult(successful=False, reason=problem)
-        return SetParametersResult(successful=True)
-
-    def _on_parameters_set(self, parameters):
-        for parameter in parameters:
-            if parameter.name == 'publish_ground_truth':
-                self._publish_ground_truth = parameter.value
-            elif parameter.name == 'duration':
-                self._duration = parameter.value
-            elif parameter.name == 'diagnostics_period':
-                self._diagnostics_period_ns = seconds_to_ns(parameter.value)
-            elif parameter.name == 'ground_truth_period':
-                self._ground_truth_period_ns = seconds_to_ns(parameter.value)
+    def _on_setting(self, name, value):
+        """Apply the runtime-changeable parameters."""
+        if name == 'publish_ground_truth':
+            self._publish_ground_truth = value
+        elif name == 'duration':
+            self._duration = value
+        elif name == 'diagnostics_period':
+            self._diagnostics_period_ns = seconds_to_ns(value)
+        elif name == 'ground_truth_period':
+            self._ground_truth_period_ns = seconds_to_ns(value)
 
     @property
     def stop_time(self):
@@ -334,7 +325,7 @@ class SimBridge(Node):
         return response
 
     def _on_move_object(self, request, response):
-        displacement = np.array(self.get_parameter('object_displacement').value, dtype=float)
+        displacement = np.array(self.settings['object_displacement'], dtype=float)
         try:
             self.twin.move_object(displacement)
         except DualArmControlError as error:

@@ -17,11 +17,11 @@ from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
 from dual_arm_control.core.validation import finite_array
 from dual_arm_control.description.cell import load_cell
+from dual_arm_control.runtime.node_settings import FRI_PERIOD, FRI_PERIODS
 import mujoco
 import numpy as np
 from sim_bridge.scene import build_model, PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
 
-FRI_PERIODS = (0.001, 0.002, 0.005)   # [s]
 # A sample or perturbation due at time t is taken at the first physics tick with
 # tick * dt >= t - TIME_EPSILON [s] (floating-point tolerance on the sim clock).
 TIME_EPSILON = 1e-9
@@ -74,7 +74,7 @@ class DualArmTwin:
     [N m] in URDF joint order A1..A7.
     """
 
-    def __init__(self, scenario, cell=None, fri_period=0.002):
+    def __init__(self, scenario, cell=None, fri_period=FRI_PERIOD):
         """
         Build the model for a scenario and reset to its initial state.
 

@@ -8,16 +8,16 @@ executor plays the controllers, so each step of the lockstep protocol can be che
 import math
 
 from dual_arm_control import contract
+from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.nodes.messages import stamp_ns, time_msg
 from dual_arm_control.runtime.fri import command_refusal
+from dual_arm_control.runtime.node_settings import node_table
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest
-from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from sim_bridge.bridge_node import SimBridge
-from sim_bridge.bridge_parameters import parameter_problem
 from std_srvs.srv import Trigger
 
 NAMES = contract.joint_names('left')
@@ -60,7 +60,7 @@ def test_time_message_round_trip(nanoseconds):
     ('scenario', '', False),
 ])
 def test_parameter_validation(name, value, allowed):
-    assert (parameter_problem(name, value) is None) == allowed
+    assert (node_table('sim_bridge').setting(name).problem(value) is None) == allowed
 
 
 @pytest.fixture
@@ -79,7 +79,7 @@ def graph(ros_domain):
 def test_invalid_fri_period_refuses_to_start(ros_domain):
     probe = GraphProbe(ros_domain)
     try:
-        with pytest.raises(InvalidParameterValueException, match='0.001, 0.002, 0.005'):
+        with pytest.raises(ConfigError, match='fri_period must be one of 0.001, 0.002, 0.005 s'):
             SimBridge(context=probe.context,
                       parameter_overrides=[Parameter('fri_period', value=0.003)])
     finally:

@@ -524,7 +524,8 @@ def test_wrench_qp_parameters(wrench_qp):
     for name, value, reason in (('qp.min_normal_force', 50.0, 'max_normal_force'),
                                 ('ramp_time_constant', 0.0, 'ramp_time_constant'),
                                 ('object_mass', -1.0, ''),
-                                ('object_size', [0.2, 0.0, 0.2], 'object_size y'),
+                                ('object_size', [0.2, 0.0, 0.2],
+                                 'object_size[1] = 0 m is outside (0, 2] m'),
                                 ('object_size', [0.2, 0.2], 'object_size'),
                                 ('scenario', 'hold', 'read-only')):
         result = set_parameter(node, name, value)

@@ -17,12 +17,12 @@ import time
 
 from dual_arm_control import contract
 from dual_arm_control.resources import config_path
+from dual_arm_control.runtime.node_settings import DS_PERIOD
 import numpy as np
 import rclpy
 from rclpy.experimental import EventsExecutor
 
 CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
-DS_PERIOD = 0.005
 
 
 def child_pids(pid):

@@ -12,7 +12,7 @@ from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
 from dual_arm_control.core.tracker import ObjectTracker
 import numpy as np
 
-PERIOD = 0.005
+PERIOD = 0.005  # mocap sample period [s] (200 Hz, as the twin's default)
 LATENCY = 0.005
 
 

@@ -12,12 +12,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.nodes.messages import time_msg
 from dual_arm_control.nodes.process import create_topic_publisher
-from dual_arm_control.parameters import parameter_descriptor
 from dual_arm_control.runtime.timing import seconds_to_ns
 
 LOG_THROTTLE_PERIOD = 1.0
-DEFAULT_DIAGNOSTICS_PERIOD = 1.0
-DIAGNOSTICS_PERIOD_RANGE = (0.01, 100.0)
 
 
 def refusal_logger(logger):
@@ -36,18 +33,14 @@ class CounterDiagnostics:
     """
     A node's counters on /diagnostics, at most once per `diagnostics_period` of sim time.
 
-    Declares the `diagnostics_period` parameter [s]. Driven by the stamps of the messages the
-    node handles, so it reports in lockstep runs (faster or slower than real time) as in real
-    time; a stamp earlier than the last report (simulation reset) reports at once.
+    Reads the node's `diagnostics_period` parameter [s] (declared from its parameter table).
+    Driven by the stamps of the messages the node handles, so it reports in lockstep runs
+    (faster or slower than real time) as in real time; a stamp earlier than the last report
+    (simulation reset) reports at once.
     """
 
     def __init__(self, node):
         self._node = node
-        low, high = DIAGNOSTICS_PERIOD_RANGE
-        node.declare_parameter('diagnostics_period', DEFAULT_DIAGNOSTICS_PERIOD,
-                               parameter_descriptor('sim time between two /diagnostics '
-                                                    'messages of this node [s]',
-                                                    floating_range=(low, high)))
         self._publisher = create_topic_publisher(node, contract.DIAGNOSTICS)
         self._last_ns = None
         self.name = node.get_fully_qualified_name().lstrip('/')

@@ -23,16 +23,19 @@ from dual_arm_control.nodes.messages import (fill_arm_command, fill_twist, joint
                                              object_state_of, phase_message, stamp_ns,
                                              time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
-from dual_arm_control.parameters import ConfigParameters, parameter_descriptor
+from dual_arm_control.parameters import ConfigParameters, NodeParameters
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.runtime.inputs import ArrivalBarrier
 from dual_arm_control.runtime.motion_step import MotionGeneratorStep
+from dual_arm_control.runtime.node_settings import node_table
 from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.scenario import load_scenario
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 MARKER_PERIOD = 0.05
+# Start of the log line of a phase change (the launcher echoes these as progress).
+PHASE_LOG_PREFIX = 'phase at '
 CYCLE_INPUTS = frozenset(f'{arm}_{kind}' for arm in ARMS for kind in ('joints', 'ft'))
 
 
@@ -42,31 +45,24 @@ class DsMotionGenerator(Node):
     def __init__(self, node_name='ds_motion_generator', **node_options):
         super().__init__(node_name, **node_options)
         cell = load_cell()
-        scenario_file = self.declare_parameter('scenario', '', parameter_descriptor(
-            'scenario YAML whose task, object, targets and speeds set the defaults of the '
-            'motion parameters (empty: built-in defaults)', read_only=True)).value
+        settings = NodeParameters(self, node_table('ds_motion_generator').settings)
         base = MotionGeneratorConfig()
-        if scenario_file:
-            base = motion_config_for_scenario(load_scenario(scenario_file, cell=cell), cell)
-        auto_start = self.declare_parameter('auto_start_time', 0.0, parameter_descriptor(
-            'sim time [s] at which an episode starts by itself (after the FT tare, and once an '
-            'object estimate arrived); 0 = wait for the start service', read_only=True)).value
-        ds_period = self.declare_parameter('ds_period', 0.005, parameter_descriptor(
-            'DS tick period [s] on the FRI cycle grid', read_only=True)).value
-        lockstep = self.declare_parameter('lockstep', False, parameter_descriptor(
-            'on each tick wait for the object estimate stamped with the tick (the tracker '
-            'answers every /clock cycle): lockstep runs become independent of message timing',
-            read_only=True)).value
+        if settings['scenario']:
+            base = motion_config_for_scenario(load_scenario(settings['scenario'], cell=cell),
+                                              cell)
         parameters = ConfigParameters(self, base, self._on_config)
         self.step = MotionGeneratorStep(
-            parameters.config, {arm: arm_model(arm, cell) for arm in ARMS}, ds_period,
-            seconds_to_ns(auto_start), refusal_logger(self.get_logger()))
+            parameters.config, {arm: arm_model(arm, cell) for arm in ARMS},
+            settings['ds_period'], seconds_to_ns(settings['auto_start_time']),
+            refusal_logger(self.get_logger()))
+        lockstep = settings['lockstep']
         self._barrier = ArrivalBarrier(
             lambda t: CYCLE_INPUTS | ({'object'} if lockstep and self.step.is_new_tick(t)
                                       else set()))
         self._names = {arm: joint_names(arm) for arm in ARMS}
         self._joints, self._ft, self._object = {}, {}, {}
         self._last_marker_ns = None
+        self._last_logged_ns = None
         self._diagnostics = CounterDiagnostics(self)
         self._command_pubs = {arm: create_topic_publisher(self, contract.DS_COMMAND, arm)
                               for arm in ARMS}
@@ -97,7 +93,7 @@ class DsMotionGenerator(Node):
         self.get_logger().info(
             f'ds_motion_generator up: task {config.task.value}, impact speed '
             f'{config.impact.impact_speed:g} m/s, toss speed {config.toss.toss_speed:g} m/s, '
-            f'auto start at {auto_start:g} s (0 = start service), '
+            f'auto start at {settings["auto_start_time"]:g} s (0 = start service), '
             f'{len(parameters.names)} tunable parameters')
 
     def _on_config(self, config):
@@ -136,6 +132,11 @@ class DsMotionGenerator(Node):
                 self._publish(tick)
 
     def _publish(self, tick):
+        if tick.phase.reason and tick.stamp_ns != self._last_logged_ns:
+            self._last_logged_ns = tick.stamp_ns
+            events = f' [{", ".join(tick.phase.events)}]' if tick.phase.events else ''
+            self.get_logger().info(f'{PHASE_LOG_PREFIX}{tick.stamp_ns * 1e-9:.3f} s: '
+                                   f'{tick.phase.phase.value}{events}: {tick.phase.reason}')
         for arm in ARMS:
             fill_arm_command(self._command_msgs[arm], tick.commands[arm])
             self._command_pubs[arm].publish(self._command_msgs[arm])

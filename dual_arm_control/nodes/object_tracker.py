@@ -17,7 +17,8 @@ from dual_arm_control.core.tracker import TrackerConfig
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.messages import fill_object_state, quaternion, stamp_ns, vector3
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
-from dual_arm_control.parameters import ConfigParameters
+from dual_arm_control.parameters import ConfigParameters, NodeParameters
+from dual_arm_control.runtime.node_settings import node_table
 from dual_arm_control.runtime.tracker_step import TrackerStep
 from rclpy.node import Node
 
@@ -27,6 +28,7 @@ class ObjectTrackerNode(Node):
 
     def __init__(self, node_name='object_tracker', **node_options):
         super().__init__(node_name, **node_options)
+        NodeParameters(self, node_table('object_tracker').settings)
         self._diagnostics = CounterDiagnostics(self)
         parameters = ConfigParameters(self, TrackerConfig(), self._on_config)
         self.step = TrackerStep(parameters.config, refusal_logger(self.get_logger()))

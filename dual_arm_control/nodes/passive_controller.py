@@ -11,55 +11,22 @@ Parameters: arm, lockstep, fri_period, ds_period (read-only), command_timeout, t
 PassiveControllerConfig fields (live, from the next cycle on) and diagnostics_period.
 """
 
-import math
 import sys
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from dual_arm_control import contract
-from dual_arm_control.core.exceptions import ConfigError, InputError
+from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.passive_control import PassiveControllerConfig
-from dual_arm_control.core.validation import check_range
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.messages import (arm_command_of, joint_state_of, stamp_ns,
                                              time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
-from dual_arm_control.parameters import ConfigParameters, parameter_descriptor
+from dual_arm_control.parameters import ConfigParameters, NodeParameters
 from dual_arm_control.runtime.controller_step import ControllerStep
 from dual_arm_control.runtime.inputs import ArrivalBarrier
-from rcl_interfaces.msg import SetParametersResult
+from dual_arm_control.runtime.node_settings import controller_parameter_problem, node_table
 from rclpy.node import Node
-
-FRI_PERIODS = (0.001, 0.002, 0.005)
-DS_PERIOD_RANGE = (0.001, 0.1)
-MAX_COMMAND_TIMEOUT = 1.0
-NODE_PARAMETERS = ('arm', 'lockstep', 'fri_period', 'ds_period', 'command_timeout')
-
-
-def parameter_problem(name, value, current):
-    """
-    Return why a node parameter value is invalid, or None if it is acceptable.
-
-    current: {name: value} of the other node parameters as they will be after the set (for the
-    checks that relate two of them).
-    """
-    try:
-        if name == 'arm' and value not in contract.ARMS:
-            return f'arm must be one of {contract.ARMS}, got {value!r}'
-        if name == 'fri_period' and not any(math.isclose(value, p) for p in FRI_PERIODS):
-            return f'fri_period must be one of {FRI_PERIODS} s, got {value!r}'
-        if name == 'ds_period':
-            check_range('ds_period', value, max(DS_PERIOD_RANGE[0],
-                                                current.get('fri_period', 0.0)),
-                        DS_PERIOD_RANGE[1], 's')
-        if name == 'command_timeout':
-            longest_gap = current.get('ds_period', 0.0) + current.get('fri_period', 0.0)
-            check_range('command_timeout (must exceed ds_period + fri_period, the longest gap '
-                        'between two DS commands)', value, longest_gap, MAX_COMMAND_TIMEOUT,
-                        's', low_open=True)
-    except ConfigError as error:
-        return str(error)
-    return None
 
 
 class PassiveControllerNode(Node):
@@ -67,19 +34,18 @@ class PassiveControllerNode(Node):
 
     def __init__(self, node_name='passive_controller', **node_options):
         super().__init__(node_name, **node_options)
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        self._declare_parameters()
-        self.add_post_set_parameters_callback(self._apply_parameters)
-        self.arm = self.get_parameter('arm').value
-        self.lockstep = self.get_parameter('lockstep').value
+        settings = NodeParameters(self, node_table('passive_controller').settings,
+                                  extra_problem=controller_parameter_problem,
+                                  on_change=self._on_setting)
+        self.arm = settings['arm']
+        self.lockstep = settings['lockstep']
         self._diagnostics = CounterDiagnostics(self)
         parameters = ConfigParameters(self, PassiveControllerConfig(),
                                       lambda config: self.step.reconfigure(config))
         cell = load_cell()
         self.step = ControllerStep(arm_model(self.arm, cell), cell.arm(self.arm).q_home,
-                                   parameters.config, self.get_parameter('ds_period').value,
-                                   self.get_parameter('command_timeout').value,
-                                   refusal_logger(self.get_logger()))
+                                   parameters.config, settings['ds_period'],
+                                   settings['command_timeout'], refusal_logger(self.get_logger()))
         self._joint_names = contract.joint_names(self.arm)
         self._joint_state = None
         self._barrier = ArrivalBarrier(self._required)
@@ -98,7 +64,7 @@ class PassiveControllerNode(Node):
                                       f'{self.get_namespace()}, expected /{self.arm}')
         self.get_logger().info(
             f'{self.arm} passive controller up: {"lockstep" if self.lockstep else "realtime"}, '
-            f'ticks every {self.get_parameter("ds_period").value * 1e3:g} ms, state '
+            f'ticks every {settings["ds_period"] * 1e3:g} ms, state '
             f'{self._joint_state_sub.topic_name} -> command {self._torque_pub.topic_name}')
 
     @property
@@ -114,39 +80,9 @@ class PassiveControllerNode(Node):
             return None
         return state.stamp_ns
 
-    def _declare_parameters(self):
-        self.declare_parameter('arm', '', parameter_descriptor(
-            'which arm this controller drives', read_only=True,
-            constraints=f'one of {contract.ARMS}'))
-        self.declare_parameter('lockstep', True, parameter_descriptor(
-            'true: on tick cycles wait for ds_command and contact_wrench of the same stamp '
-            '(deterministic, with the lockstep bridge); false: never wait, use the newest',
-            read_only=True))
-        self.declare_parameter('fri_period', 0.002, parameter_descriptor(
-            'FRI cycle of the joint states [s]', read_only=True,
-            floating_range=(FRI_PERIODS[0], FRI_PERIODS[-1]), constraints=f'one of {FRI_PERIODS}'))
-        self.declare_parameter('ds_period', 0.005, parameter_descriptor(
-            'period of the DS and wrench QP ticks on the FRI cycles (TickSchedule) [s]',
-            read_only=True, floating_range=DS_PERIOD_RANGE, constraints='>= fri_period'))
-        self.declare_parameter('command_timeout', 0.05, parameter_descriptor(
-            'a ds_command or contact_wrench further than this from the cycle is stale: hold '
-            'torque / no wrench [s, sim time]', floating_range=(0.0, MAX_COMMAND_TIMEOUT),
-            constraints='> ds_period + fri_period'))
-
-    def _validate_parameters(self, parameters):
-        current = {name: self.get_parameter(name).value for name in NODE_PARAMETERS
-                   if self.has_parameter(name)}
-        current.update({p.name: p.value for p in parameters if p.name in NODE_PARAMETERS})
-        for parameter in parameters:
-            problem = parameter_problem(parameter.name, parameter.value, current)
-            if problem is not None:
-                return SetParametersResult(successful=False, reason=problem)
-        return SetParametersResult(successful=True)
-
-    def _apply_parameters(self, parameters):
-        for parameter in parameters:
-            if parameter.name == 'command_timeout':
-                self.step.set_command_timeout(parameter.value)
+    def _on_setting(self, name, value):
+        if name == 'command_timeout':
+            self.step.set_command_timeout(value)
 
     def _required(self, stamp):
         if self.lockstep and self.step.needs_tick_inputs(stamp):

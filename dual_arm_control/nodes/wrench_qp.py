@@ -16,43 +16,31 @@ import sys
 from diagnostic_msgs.msg import DiagnosticStatus
 from dual_arm_control import contract
 from dual_arm_control.catalogue import object_spec
-from dual_arm_control.core.exceptions import ConfigError, InputError
-from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.wrench_distribution import WrenchDistributorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.messages import (fill_wrench, joint_state_of, object_state_of,
                                              phase_of, stamp_ns, twist_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
-from dual_arm_control.parameters import ConfigParameters, parameter_descriptor
+from dual_arm_control.parameters import ConfigParameters, NodeParameters
 from dual_arm_control.runtime.inputs import ArrivalBarrier, RefusalCounter
+from dual_arm_control.runtime.node_settings import node_table
 from dual_arm_control.runtime.wrench_step import WrenchStep
 from dual_arm_control.scenario import load_scenario
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 DEFAULT_OBJECT = 'paper_cube'
-MASS_RANGE = (1e-3, 100.0)
-MAX_OBJECT_EDGE = 2.0
 TICK_INPUTS = frozenset(('desired_twist', 'phase', *contract.ARMS))
 
 
-def object_parameter_problem(name, value):
-    """Return why an object parameter value is invalid, or None if it is acceptable."""
-    try:
-        if name == 'object_mass':
-            check_range('object_mass', value, MASS_RANGE[0], MASS_RANGE[1], 'kg')
-        elif name == 'object_size':
-            if len(value) != 3:
-                return f'object_size must be 3 edge lengths [m], got {list(value)}'
-            for axis, edge in zip('xyz', value):
-                check_range(f'object_size {axis}', edge, 0.0, MAX_OBJECT_EDGE, 'm',
-                            low_open=True)
-        elif name == 'scenario' and value:
-            load_scenario(value)
-    except ConfigError as error:
-        return str(error)
-    return None
+def object_defaults(values):
+    """Return the object_mass and object_size defaults of the node's scenario (or catalogue)."""
+    if 'scenario' not in values:
+        return {}
+    scenario = values['scenario']
+    box = load_scenario(scenario).object if scenario else object_spec(DEFAULT_OBJECT)
+    return {'object_mass': float(box.mass), 'object_size': [float(s) for s in box.size]}
 
 
 class WrenchQPNode(Node):
@@ -60,13 +48,10 @@ class WrenchQPNode(Node):
 
     def __init__(self, node_name='wrench_qp', **node_options):
         super().__init__(node_name, **node_options)
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        mass, size = self._declare_object_parameters()
-        self.add_post_set_parameters_callback(self._apply_object_parameters)
-        lockstep = self.declare_parameter('lockstep', False, parameter_descriptor(
-            'on each tick also wait for the object estimate stamped with the tick (the tracker '
-            'answers every /clock cycle): lockstep runs become independent of message timing',
-            read_only=True)).value
+        settings = NodeParameters(self, node_table('wrench_qp').settings, object_defaults,
+                                  on_change=self._on_setting)
+        mass, size, lockstep = (settings[name] for name in ('object_mass', 'object_size',
+                                                            'lockstep'))
         self._diagnostics = CounterDiagnostics(self)
         parameters = ConfigParameters(self, WrenchDistributorConfig(), self.step_reconfigure)
         cell = load_cell()
@@ -102,34 +87,12 @@ class WrenchQPNode(Node):
         """Hand an accepted distributor config to the step (applies at the next tick)."""
         self.step.reconfigure(config)
 
-    def _declare_object_parameters(self):
-        """Declare scenario, object_mass and object_size; return (mass [kg], size [m])."""
-        scenario = self.declare_parameter('scenario', '', parameter_descriptor(
-            'scenario YAML (path or name under config/scenarios) whose object gives the '
-            f'defaults of object_mass and object_size; empty: catalogue {DEFAULT_OBJECT}',
-            read_only=True)).value
-        box = load_scenario(scenario).object if scenario else object_spec(DEFAULT_OBJECT)
-        mass = self.declare_parameter('object_mass', float(box.mass), parameter_descriptor(
-            'mass of the grasped box [kg]', floating_range=MASS_RANGE)).value
-        size = self.declare_parameter('object_size', [float(s) for s in box.size],
-                                      parameter_descriptor(
-                                          'edge lengths of the box along object x, y (squeeze '
-                                          'axis), z [m]', constraints='3 lengths in (0, '
-                                          f'{MAX_OBJECT_EDGE:g}] m')).value
-        return mass, tuple(size)
-
-    def _validate_parameters(self, parameters):
-        for parameter in parameters:
-            problem = object_parameter_problem(parameter.name, parameter.value)
-            if problem is not None:
-                return SetParametersResult(successful=False, reason=problem)
-        return SetParametersResult(successful=True)
-
-    def _apply_object_parameters(self, parameters):
-        changes = {p.name: p.value for p in parameters
-                   if p.name in ('object_mass', 'object_size')}
-        if changes:
-            self.step.change_object(changes.get('object_mass'), changes.get('object_size'))
+    def _on_setting(self, name, value):
+        """Apply a new object mass or size at the next tick outside a grasp."""
+        if name == 'object_mass':
+            self.step.change_object(mass=value)
+        elif name == 'object_size':
+            self.step.change_object(size=value)
 
     def _on_input(self, key, read, msg):
         try:

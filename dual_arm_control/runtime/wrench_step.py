@@ -12,12 +12,11 @@ applies at the next tick; a new object mass or size at the next tick outside a g
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.wrench_distribution import GRASPING_PHASES, WrenchDistributor
+from dual_arm_control.runtime.node_settings import DS_PERIOD
 from dual_arm_control.runtime.signals import WrenchSample
 from dual_arm_control.runtime.timing import estimate_at, TickSchedule
 import numpy as np
 
-# Period assumed for the first tick (the ramp of the grasp wrench needs a dt) [s].
-FIRST_TICK_PERIOD = 0.005
 COUNTERS = ('ticks', 'repeated_answers', 'grasp_ticks', 'infeasible_ticks',
             'ticks_without_object_state', 'ticks_without_joint_states', 'ticks_without_phase',
             'object_changes_applied')
@@ -34,7 +33,7 @@ class WrenchStep:
         self._distributor = WrenchDistributor(config, self.object_mass, self.object_size)
         self._pending_config = None
         self._pending_object = None
-        self._schedule = TickSchedule(FIRST_TICK_PERIOD)
+        self._schedule = TickSchedule(DS_PERIOD)
         self._last = None
         self.last_result = None
         self.counters = dict.fromkeys(COUNTERS, 0)

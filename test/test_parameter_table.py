@@ -1,0 +1,107 @@
+"""The parameter table is the one source: nodes declare it, config files and docs agree."""
+
+import math
+
+from conftest import SOURCE_ROOT
+from dual_arm_control.core.settings import Setting
+from dual_arm_control.graph import GRAPHS
+from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
+from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
+from dual_arm_control.nodes.passive_controller import PassiveControllerNode
+from dual_arm_control.nodes.wrench_qp import WrenchQPNode
+from dual_arm_control.parameter_files import (BUILT_IN_PARAMETERS, key_applies,
+                                              node_parameter_names, parameter_file_problems,
+                                              parameter_reference)
+from dual_arm_control.resources import load_yaml
+from dual_arm_control.runtime.config_tree import config_leaves
+from dual_arm_control.runtime.node_settings import node_table
+from graph_helpers import GraphProbe
+import pytest
+from rclpy.parameter import Parameter
+from sim_bridge.bridge_node import SimBridge
+from sim_bridge.gravity_comp_controller import GravityCompController
+
+CONFIG = SOURCE_ROOT / 'config'
+NODE_CONFIG_FILES = sorted(path for path in CONFIG.glob('*.yaml')
+                           if path.name not in ('cell.yaml', 'objects.yaml'))
+GRAPH = GRAPHS['full']() + GRAPHS['hold']()
+
+
+def test_the_parameter_reference_is_generated_from_the_table():
+    text = (SOURCE_ROOT / 'docs' / 'parameters.md').read_text()
+    assert text == parameter_reference(), (
+        'docs/parameters.md is stale: python -m dual_arm_control.parameter_files > '
+        'docs/parameters.md')
+
+
+@pytest.mark.parametrize('path', NODE_CONFIG_FILES, ids=lambda path: path.name)
+def test_shipped_config_files_agree_with_the_table(path):
+    """Every key is a parameter of a node it applies to, with the table's default value."""
+    assert parameter_file_problems(path, GRAPH) == []
+    for key, entry in load_yaml(path).items():
+        for spec in (spec for spec in GRAPH if key_applies(key, spec)):
+            table = node_table(spec.executable)
+            defaults = {leaf.name: leaf.setting for leaf in (
+                config_leaves(table.config()) if table.config else [])}
+            defaults.update({setting.name: setting for setting in table.settings})
+            for name, value in entry['ros__parameters'].items():
+                setting = defaults.get(name)
+                if setting is None or setting.problem(setting.default) is not None:
+                    continue
+                assert value == pytest.approx(setting.default), (path.name, key, name)
+
+
+def test_a_bad_file_is_reported_with_file_node_key_and_reason(tmp_path):
+    path = tmp_path / 'bad.yaml'
+    path.write_text('wrench_qp:\n  ros__parameters:\n    qp.friction_coefficient: -1.0\n'
+                    '    object_size: [0.2, 0.2]\n    speed: 3\n'
+                    '/right/passive_controller:\n  ros__parameters:\n    command_timeout: 0.006\n')
+    problems = parameter_file_problems(path, GRAPH)
+    assert problems == [
+        f'{path}: wrench_qp: qp.friction_coefficient: friction_coefficient = -1 is outside '
+        '(0, 5]',
+        f'{path}: wrench_qp: object_size: object_size must have 3 elements, got 2',
+        f'{path}: wrench_qp: speed: unknown parameter (not declared by /wrench_qp)',
+        f'{path}: /right/passive_controller: command_timeout = 0.006 s must exceed ds_period + '
+        'fri_period = 0.007 s, the longest gap between two DS commands',
+    ]
+
+
+def test_settings_refuse_what_they_do_not_allow():
+    speed = Setting('speed', 0.5, 'a speed', 'm/s', 0.0, 2.0, low_open=True)
+    assert speed.problem(0.5) is None and speed.problem(2.0) is None
+    assert speed.problem(0.0) == 'speed = 0 m/s is outside (0, 2] m/s'
+    assert speed.problem(math.nan) == 'speed must be finite, got nan'
+    assert speed.problem(True) == 'speed must be a number, got True'
+    assert speed.problem('fast') == "speed must be a number, got 'fast'"
+    period = Setting('period', 0.002, 'a period', 's', choices=(0.001, 0.002, 0.005))
+    assert period.problem(0.003) == 'period must be one of 0.001, 0.002, 0.005 s, got 0.003'
+    mode = Setting('mode', 'a', 'a mode', choices=('a', 'b'))
+    assert mode.problem('c') == "mode must be one of a, b, got 'c'"
+    names = Setting('nodes', ('',), 'names')
+    assert names.problem(['/a', '/b']) is None and names.problem([1]) is not None
+
+
+NODE_CLASSES = {'sim_bridge': SimBridge, 'object_tracker': ObjectTrackerNode,
+                'ds_motion_generator': DsMotionGenerator, 'wrench_qp': WrenchQPNode,
+                'passive_controller': PassiveControllerNode,
+                'gravity_comp_controller': GravityCompController}
+
+
+@pytest.mark.parametrize('executable', sorted(NODE_CLASSES))
+def test_each_node_declares_exactly_its_table(ros_domain, executable):
+    probe = GraphProbe(ros_domain)
+    overrides = ([Parameter('arm', value='left')] if executable.endswith('controller')
+                 else [])
+    try:
+        node = NODE_CLASSES[executable](context=probe.context, parameter_overrides=overrides)
+        declared = set(node._parameters) - set(BUILT_IN_PARAMETERS)
+        spec = next(spec for spec in GRAPH if spec.executable == executable)
+        assert declared == set(node_parameter_names(spec))
+        for entry in node_table(executable).settings:
+            descriptor = node.describe_parameter(entry.name)
+            assert entry.description in descriptor.description
+            assert descriptor.read_only == entry.read_only
+        node.destroy_node()
+    finally:
+        probe.close()
