@@ -5,6 +5,7 @@ from pathlib import Path
 import random
 import sys
 
+import domain_coordinator
 import pytest
 
 SOURCE_ROOT = Path(__file__).resolve().parent.parent
@@ -23,9 +24,14 @@ def source_root():
     return SOURCE_ROOT
 
 
+def random_domain():
+    """Return a random domain id to try (domain_coordinator takes the next free one)."""
+    return random.SystemRandom().randint(1, 100)
+
+
 @pytest.fixture
 def ros_domain(monkeypatch):
-    """Give the test (and every process it starts) its own ROS domain id."""
-    domain_id = str(random.SystemRandom().randint(1, 200))
-    monkeypatch.setenv('ROS_DOMAIN_ID', domain_id)
-    return domain_id
+    """Give the test (and every process it starts) a ROS domain id reserved while it runs."""
+    with domain_coordinator.domain_id(random_domain) as reserved:
+        monkeypatch.setenv('ROS_DOMAIN_ID', str(reserved))
+        yield str(reserved)

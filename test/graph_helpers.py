@@ -8,7 +8,6 @@ group is left, whatever happened.
 
 import os
 from pathlib import Path
-import random
 import signal
 import subprocess
 import sys
@@ -149,15 +148,14 @@ def record_episode(scenario, out, duration, timeout):
     """
     Run `dual_arm_bringup --record` on a scenario for duration [sim s] into out.
 
-    A fresh random ROS domain; returns the completed process (exit 0 or 1: the episode's
-    criteria may fail in a shortened run).
+    In a ROS domain the launcher reserves; returns the completed process (exit 0 or 1: the
+    episode's criteria may fail in a shortened run).
     """
     params = Path(out).parent / f'{Path(out).name}_params.yaml'
     params.write_text(f'sim_bridge:\n  ros__parameters:\n    duration: {duration}\n')
     bringup = subprocess.run(
         [str(SCRIPTS_DIR / 'dual_arm_bringup'), '--scenario', str(scenario), '--params',
-         str(params), '--out', str(out), '--record',
-         '--domain-id', str(random.SystemRandom().randint(1, 200))],
+         str(params), '--out', str(out), '--record'],
         capture_output=True, text=True, timeout=timeout, env=dict(os.environ))
     assert bringup.returncode in (0, 1), bringup.stdout + bringup.stderr
     return bringup
