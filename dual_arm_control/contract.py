@@ -14,7 +14,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool
+from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 WORLD_FRAME = 'world'
@@ -29,8 +29,14 @@ PUBLISHER_HISTORY_DEPTH = 1000
 CONTROL_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE)
-# Sensor-like streams that a late subscriber may join (mocap, ground truth, markers).
+# Sensor data (joint states, FT, mocap), subscribed best effort so that a best-effort driver
+# (rclpy's qos_profile_sensor_data) connects; our publishers stay reliable, and in lockstep a
+# lost sample is published again by the bridge.
 SENSOR_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH,
+    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+# Streams for viewers and evaluation (ground truth, markers, diagnostics).
+MONITOR_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE)
 # The phase is a state: a late subscriber gets the latest ones; every tick's is delivered.
@@ -50,10 +56,10 @@ class Topic:
 
     @property
     def publisher_qos(self):
-        """Return the QoS publishers offer: the topic's, with PUBLISHER_HISTORY_DEPTH."""
+        """Return the QoS our publishers offer: reliable, PUBLISHER_HISTORY_DEPTH deep."""
         return QoSProfile(history=self.qos.history,
                           depth=max(self.qos.depth, PUBLISHER_HISTORY_DEPTH),
-                          reliability=self.qos.reliability, durability=self.qos.durability)
+                          reliability=ReliabilityPolicy.RELIABLE, durability=self.qos.durability)
 
     def resolved(self, arm=None):
         """Return the absolute topic name, for the given arm if the topic is per arm."""
@@ -64,29 +70,40 @@ class Topic:
         return self.name
 
 
+# Every topic's semantics (frames, stamps, units) is in the README's topic table. Stamps are sim
+# time; vectors are SI and in the world frame unless a frame_id says otherwise.
 CLOCK = Topic('/clock', Clock, CONTROL_QOS)
-JOINT_STATES = Topic('joint_states', JointState, CONTROL_QOS, per_arm=True)
+# Joints matched by name (any order; other joints ignored, a missing one refused).
+JOINT_STATES = Topic('joint_states', JointState, SENSOR_QOS, per_arm=True)
 TORQUE_COMMAND = Topic('torque_command', JointState, CONTROL_QOS, per_arm=True)
-FT_WRENCH = Topic('ft_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
+# Raw F/T reading: the wrench the tool applies to the sensor, frame <arm>_ft_sensor.
+FT_WRENCH = Topic('ft_wrench', WrenchStamped, SENSOR_QOS, per_arm=True)
 MOCAP_OBJECT_POSE = Topic('/mocap/object_pose', PoseStamped, SENSOR_QOS)
 # The tracker answers every mocap sample (stamp = the sample's) and every /clock cycle (stamp =
-# the cycle's; before a track exists the pose covariance[0] is NO_ESTIMATE_COVARIANCE).
+# the cycle's). Pose and twist of the child frame 'object' in 'world', twist in 'world' at the
+# object centre; covariances from the filter. Before a track exists pose.covariance[0] is
+# NO_ESTIMATE_COVARIANCE (-1), the "no estimate" convention of sensor_msgs/Imu.
 OBJECT_STATE = Topic('/object/state', Odometry, CONTROL_QOS)
 NO_ESTIMATE_COVARIANCE = -1.0
-DS_COMMAND = Topic('ds_command', Odometry, CONTROL_QOS, per_arm=True)
+# The DS command of one arm for a tick: a one-point MultiDOFJointTrajectory in 'world' for the
+# joint '<arm>_tool': transforms[0] = the DS attractor (translation) and the desired tool
+# orientation (rotation); velocities[0] = the desired tool twist in 'world' at the tool point.
+DS_COMMAND = Topic('ds_command', MultiDOFJointTrajectory, CONTROL_QOS, per_arm=True)
+# Force the pad applies on the object and moment about the tool point, frame 'world'.
 CONTACT_WRENCH = Topic('contact_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
 OBJECT_DESIRED_TWIST = Topic('/object/desired_twist', TwistStamped, CONTROL_QOS)
 # One stamped status per DS tick: message = phase, values = task, time in phase, events, reason.
 PHASE = Topic('/dual_arm/phase', DiagnosticArray, LATCHED_QOS)
 PHASE_STATUS_NAME = 'dual_arm/phase'
-MARKERS = Topic('/dual_arm/markers', MarkerArray, SENSOR_QOS)
-GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, SENSOR_QOS)
-GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, SENSOR_QOS,
+MARKERS = Topic('/dual_arm/markers', MarkerArray, MONITOR_QOS)
+GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, MONITOR_QOS)
+# Total force the pad exerts on the box and its moment about the tool point, frame 'world'
+# (zero when the pad does not touch the box).
+GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, MONITOR_QOS,
                                 per_arm=True)
-GROUND_TRUTH_PAD_CONTACT = Topic('ground_truth/pad_contact', Bool, SENSOR_QOS, per_arm=True)
 # Tool-centre pose and twist in the world frame, from the simulator (evaluation only).
-GROUND_TRUTH_TOOL = Topic('ground_truth/tool', Odometry, SENSOR_QOS, per_arm=True)
-DIAGNOSTICS = Topic('/diagnostics', DiagnosticArray, SENSOR_QOS)
+GROUND_TRUTH_TOOL = Topic('ground_truth/tool', Odometry, MONITOR_QOS, per_arm=True)
+DIAGNOSTICS = Topic('/diagnostics', DiagnosticArray, MONITOR_QOS)
 # bag_record's matched publishers per recorded topic (one status, values topic -> count): a
 # recorded lockstep run starts once the recorder has matched every publisher the bridge sees.
 RECORDER_STATUS = Topic('/bag_record/matched', DiagnosticArray, QoSProfile(
@@ -96,7 +113,7 @@ RECORDER_STATUS = Topic('/bag_record/matched', DiagnosticArray, QoSProfile(
 ALL_TOPICS = (
     CLOCK, JOINT_STATES, TORQUE_COMMAND, FT_WRENCH, MOCAP_OBJECT_POSE, OBJECT_STATE, DS_COMMAND,
     CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, GROUND_TRUTH_OBJECT,
-    GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_PAD_CONTACT, GROUND_TRUTH_TOOL, DIAGNOSTICS,
+    GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_TOOL, DIAGNOSTICS,
     RECORDER_STATUS,
 )
 

@@ -39,6 +39,7 @@ class RunnerConfig:
     fri_period: float = FRI_PERIOD
     ds_period: float = DS_PERIOD
     command_timeout: float = COMMAND_TIMEOUT
+    torque_interface: str = 'full'
     start_time: float = EPISODE_START_TIME
     motion_base: object = None
     controller: PassiveControllerConfig = field(default_factory=PassiveControllerConfig)
@@ -89,7 +90,8 @@ class EpisodeRoles:
                                  models)
         self.controllers = {arm: ControllerStep(models[arm], cell.arm(arm).q_home,
                                                 config.controller, config.ds_period,
-                                                config.command_timeout) for arm in ARMS}
+                                                config.command_timeout, config.torque_interface)
+                            for arm in ARMS}
 
 
 def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
@@ -103,7 +105,8 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
     timer = _NoTimer() if timer is None else timer
     config = RunnerConfig() if config is None else config
     cell = load_cell() if cell is None else cell
-    twin = DualArmTwin(scenario, cell, fri_period=config.fri_period)
+    twin = DualArmTwin(scenario, cell, fri_period=config.fri_period,
+                       torque_interface=config.torque_interface)
     fri = FriCycle(twin)
     roles = EpisodeRoles(scenario, config, cell)
     names = {arm: joint_names(arm) for arm in ARMS}

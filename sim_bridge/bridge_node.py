@@ -66,7 +66,8 @@ class SimBridge(Node):
         self.mode = settings['mode']
         self.fri_period = settings['fri_period']
         self.scenario = load_scenario(settings['scenario'])
-        self.twin = DualArmTwin(self.scenario, fri_period=self.fri_period)
+        self.twin = DualArmTwin(self.scenario, fri_period=self.fri_period,
+                                torque_interface=settings['torque_interface'])
         self.fri = FriCycle(self.twin)
         lockstep = self.mode == 'lockstep'
         self._publish_ground_truth = settings['publish_ground_truth']
@@ -104,7 +105,8 @@ class SimBridge(Node):
         else:
             self._timer = self.create_timer(self.fri_period, self._on_fri_tick, clock=steady)
         self.get_logger().info(
-            f'sim_bridge up: mode {self.mode}, FRI period {self.fri_period * 1e3:g} ms, scenario '
+            f'sim_bridge up: mode {self.mode}, FRI period {self.fri_period * 1e3:g} ms, torque '
+            f'interface {self.twin.torque_interface}, scenario '
             f'{settings["scenario"]}, seed {self.scenario.seed}, stops at sim time '
             f'{self.stop_time:g} s, ground truth {"on" if self._publish_ground_truth else "off"}')
 

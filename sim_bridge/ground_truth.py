@@ -1,5 +1,5 @@
 """
-The simulator's ground truth on topics: object, tools, pad wrenches and pad contacts.
+The simulator's ground truth on topics: object, tools and pad wrenches.
 
 For evaluation and recording only; no node of the control graph subscribes. Published at most
 once per `period` of sim time.
@@ -32,18 +32,16 @@ class GroundTruthStreams:
     def __init__(self, node):
         self.object = Stream(node, contract.GROUND_TRUTH_OBJECT, frame_id=contract.WORLD_FRAME,
                              child_frame_id='object')
-        self.tools, self.pad_wrenches, self.pad_contacts = {}, {}, {}
+        self.tools, self.pad_wrenches = {}, {}
         for arm in contract.ARMS:
             self.tools[arm] = Stream(node, contract.GROUND_TRUTH_TOOL, arm,
                                      frame_id=contract.WORLD_FRAME, child_frame_id=f'{arm}_tool')
             self.pad_wrenches[arm] = Stream(node, contract.GROUND_TRUTH_PAD_WRENCH, arm,
                                             frame_id=contract.WORLD_FRAME)
-            self.pad_contacts[arm] = Stream(node, contract.GROUND_TRUTH_PAD_CONTACT, arm)
 
     def streams(self):
         """Return every stream."""
-        return [self.object, *self.tools.values(), *self.pad_wrenches.values(),
-                *self.pad_contacts.values()]
+        return [self.object, *self.tools.values(), *self.pad_wrenches.values()]
 
     def publish(self, twin, stamp_ns):
         """Publish the twin's current ground truth stamped stamp_ns."""
@@ -57,12 +55,9 @@ class GroundTruthStreams:
             tool.msg.header.stamp = stamp
             fill_odometry(tool.msg, p_world_tool, R_world_tool, *twin.tool_twist(arm))
             tool.publish()
-            force_world, in_contact = twin.pad_contact(arm)
-            _, torque_world = twin.pad_wrench(arm)
+            force_world, torque_world = twin.pad_wrench(arm)
             wrench = self.pad_wrenches[arm]
             wrench.msg.header.stamp = stamp
             set_vector3(wrench.msg.wrench.force, force_world)
             set_vector3(wrench.msg.wrench.torque, torque_world)
             wrench.publish()
-            self.pad_contacts[arm].msg.data = bool(in_contact)
-            self.pad_contacts[arm].publish()

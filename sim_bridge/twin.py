@@ -17,7 +17,7 @@ from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
 from dual_arm_control.core.validation import finite_array
 from dual_arm_control.description.cell import load_cell
-from dual_arm_control.runtime.node_settings import FRI_PERIOD, FRI_PERIODS
+from dual_arm_control.runtime.node_settings import FRI_PERIOD, FRI_PERIODS, TORQUE_INTERFACES
 import mujoco
 import numpy as np
 from sim_bridge.scene import build_model, PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
@@ -29,9 +29,16 @@ TIME_EPSILON = 1e-9
 
 @dataclass(frozen=True)
 class StepReport:
-    """What one FRI cycle did: per arm, whether the command was clamped to the torque limits."""
+    """
+    What one FRI cycle did, per arm.
+
+    clamped: the joint torque exceeded a limit and was clamped; applied: the joint torques
+    [N m] (7,) the drives produced (the command, plus gravity compensation with the
+    gravity_compensated interface), after clamping.
+    """
 
     clamped: dict
+    applied: dict
 
 
 @dataclass(frozen=True)
@@ -74,13 +81,20 @@ class DualArmTwin:
     [N m] in URDF joint order A1..A7.
     """
 
-    def __init__(self, scenario, cell=None, fri_period=FRI_PERIOD):
+    def __init__(self, scenario, cell=None, fri_period=FRI_PERIOD, torque_interface='full'):
         """
         Build the model for a scenario and reset to its initial state.
 
         scenario: dual_arm_control.scenario.Scenario; cell: CellDescription (config/cell.yaml
-        if None); fri_period: FRI cycle [s], one of FRI_PERIODS.
+        if None); fri_period: FRI cycle [s], one of FRI_PERIODS; torque_interface: 'full'
+        (commands are the whole joint torque) or 'gravity_compensated' (the robot adds its own
+        gravity compensation to the commanded torque, as KUKA's controller does in FRI torque
+        mode).
         """
+        if torque_interface not in TORQUE_INTERFACES:
+            raise ConfigError(f'torque_interface must be one of {TORQUE_INTERFACES}, got '
+                              f'{torque_interface!r}')
+        self.torque_interface = torque_interface
         if not any(abs(fri_period - period) < 1e-12 for period in FRI_PERIODS):
             raise ConfigError(f'fri_period = {fri_period} s is not one of {FRI_PERIODS} s')
         self.scenario = scenario
@@ -155,27 +169,37 @@ class DualArmTwin:
             keys = sorted(torques) if isinstance(torques, dict) else type(torques).__name__
             raise InputError(f'torques must be a dict with keys {ARMS}, got {keys}')
         commands = {arm: finite_array(f'torques[{arm!r}]', torques[arm], (7,)) for arm in ARMS}
-        clamped = {}
+        if self.torque_interface == 'gravity_compensated':
+            commands = {arm: commands[arm] + self.gravity_torques(arm) for arm in ARMS}
+        clamped, applied = {}, {}
         for arm in ARMS:
             limit = self._torque_limits[arm]
             clamped[arm] = bool(np.any(np.abs(commands[arm]) > limit))
-            self.data.ctrl[self.index.arms[arm].actuators] = np.clip(commands[arm], -limit,
-                                                                     limit)
+            applied[arm] = np.clip(commands[arm], -limit, limit)
+            self.data.ctrl[self.index.arms[arm].actuators] = applied[arm]
         for _ in range(self._substeps):
             self._apply_due_perturbations()
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
             self._sample_mocap()
         self._update_ft()
-        return StepReport(clamped=clamped)
+        return StepReport(clamped=clamped, applied=applied)
 
     def hold_torques(self, arm):
         """
-        Return the (7,) FRI-like safety hold torques [N m] of an arm.
+        Return the (7,) command [N m] that makes an arm hold, as the robot's safety stop would.
 
-        Gravity compensation from MuJoCo's own bias forces at zero velocity, minus
-        hold_damping (config/cell.yaml) * joint velocity.
+        Gravity compensation minus hold_damping (config/cell.yaml) * joint velocity; with the
+        gravity_compensated interface the robot adds the gravity itself, so only the damping
+        is commanded.
         """
+        damping = self._hold_damping[arm] * self.data.qvel[self.index.arms[self._arm(arm)].dof]
+        if self.torque_interface == 'gravity_compensated':
+            return -damping
+        return self.gravity_torques(arm) - damping
+
+    def gravity_torques(self, arm):
+        """Return the (7,) joint torques [N m] that balance gravity (MuJoCo's own model)."""
         index = self.index.arms[self._arm(arm)]
         scratch = self._scratch
         scratch.qpos[:] = self.data.qpos
@@ -184,7 +208,7 @@ class DualArmTwin:
         mujoco.mj_comPos(self.model, scratch)
         bias = np.zeros(self.model.nv)
         mujoco.mj_rne(self.model, scratch, 0, bias)
-        return bias[index.dof] - self._hold_damping[arm] * self.data.qvel[index.dof]
+        return bias[index.dof]
 
     def joint_state(self, arm):
         """Return the JointSample of an arm (measured torque = applied motor torque)."""

@@ -79,7 +79,7 @@ def write_synthetic_bag(path, count=100, period_ns=10 * MS):
     with BagWriter(path, chunk_size=2048) as writer:
         writer.add_topic('/clock', Clock, contract.CLOCK.publisher_qos)
         writer.add_topic('/sim/joint_states', JointState, contract.JOINT_STATES.publisher_qos)
-        writer.add_topic('/sim/other', Bool, contract.SENSOR_QOS)
+        writer.add_topic('/sim/other', Bool, contract.MONITOR_QOS)
         for k in range(count):
             log_time = BASE_NS + k * period_ns
             writer.write('/clock', serialize_message(Clock(clock=time_of(k * period_ns))),

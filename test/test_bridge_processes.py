@@ -239,17 +239,14 @@ def test_mocap_and_ground_truth_topics_agree_with_the_log(tmp_path, ros_domain):
     log_path = tmp_path / 'cube_drop.npz'
     duration = 1.0
     probe = GraphProbe(ros_domain)
-    received = {'mocap': [], 'object': [], 'left_tool': [], 'right_contact': []}
+    received = {'mocap': [], 'object': [], 'left_tool': [], 'right_pad': []}
     subscriptions = [
         probe.node.create_subscription(topic.msg_type, topic.resolved(arm), received[key].append,
                                        topic.qos)
         for key, topic, arm in (('mocap', contract.MOCAP_OBJECT_POSE, None),
                                 ('object', contract.GROUND_TRUTH_OBJECT, None),
-                                ('left_tool', contract.GROUND_TRUTH_TOOL, 'left'))]
-    subscriptions.append(probe.node.create_subscription(
-        contract.GROUND_TRUTH_PAD_CONTACT.msg_type,
-        contract.GROUND_TRUTH_PAD_CONTACT.resolved('right'), received['right_contact'].append,
-        contract.GROUND_TRUTH_PAD_CONTACT.qos))
+                                ('left_tool', contract.GROUND_TRUTH_TOOL, 'left'),
+                                ('right_pad', contract.GROUND_TRUTH_PAD_WRENCH, 'right'))]
     try:
         with ProcessGroup(tmp_path, ros_domain) as graph:
             graph.start_bridge(scenario=str(scenario.path), duration=duration,
@@ -276,9 +273,12 @@ def test_mocap_and_ground_truth_topics_agree_with_the_log(tmp_path, ros_domain):
         row = row_of_stamp[stamp_of(msg)]
         assert [p.x, p.y, p.z] == data['left_tool_position'][row].tolist()
         assert [v.x, v.y, v.z] == data['left_tool_velocity'][row].tolist()
-    for key in ('object', 'left_tool', 'right_contact'):
+    for key in ('object', 'left_tool', 'right_pad'):
         assert 0.9 * len(data['t']) < len(received[key]) <= len(data['t']), key
-    assert not any(msg.data for msg in received['right_contact'])
+    for msg in received['right_pad']:
+        force = msg.wrench.force
+        assert [force.x, force.y, force.z] == data['right_pad_force'][
+            row_of_stamp[stamp_of(msg)]].tolist() == [0.0, 0.0, 0.0]
 
     # Mocap: stamped with the sampling time, within the noise of the ground truth.
     sampled = (duration - mocap.latency) * mocap.rate_hz

@@ -1,8 +1,12 @@
-"""The whole pipeline in one process on the twin: the paper's toss, and bit-identical reruns."""
+"""
+The whole pipeline in one process: the paper's toss, reruns, a gravity-compensated robot.
+
+The gravity-compensated torque interface is KUKA's FRI torque mode: the robot adds g(q).
+"""
 
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import episode_metrics
-from dual_arm_control.inprocess import run_episode
+from dual_arm_control.inprocess import run_episode, RunnerConfig
 from dual_arm_control.scenario import load_scenario, scenario_path
 import numpy as np
 import pytest
@@ -13,9 +17,13 @@ def cell():
     return load_cell()
 
 
-def test_paper_toss_in_process(cell):
+@pytest.mark.parametrize('torque_interface', ['full', 'gravity_compensated'])
+def test_paper_toss_in_process(cell, torque_interface):
+    """The robot adding g(q) itself must give the same task: the controller leaves it out."""
     scenario = load_scenario(scenario_path('paper_toss'), cell=cell)
-    metrics = episode_metrics(scenario, run_episode(scenario, cell=cell).trajectory, cell)
+    config = RunnerConfig(torque_interface=torque_interface)
+    metrics = episode_metrics(scenario, run_episode(scenario, config=config,
+                                                    cell=cell).trajectory, cell)
     assert metrics['contact_time_gap'] <= 0.010
     assert metrics['impact_speed_along_direction_left'] == pytest.approx(0.5, rel=0.15)
     assert metrics['impact_speed_along_direction_right'] == pytest.approx(0.5, rel=0.15)
@@ -33,3 +41,15 @@ def test_reruns_are_bit_identical(cell):
     assert first['left_pad_contact'].any()
     for name, values in first.items():
         assert np.array_equal(values, second[name]), name
+
+
+def test_a_gravity_compensated_robot_gets_the_torque_without_gravity(cell):
+    """Same joint torques at the drives either way (within the two models' g(q) agreement)."""
+    scenario = load_scenario(scenario_path('paper_toss'), cell=cell)
+    runs = {interface: run_episode(scenario, RunnerConfig(torque_interface=interface),
+                                   cell, duration=0.4).trajectory
+            for interface in ('full', 'gravity_compensated')}
+    for arm in ('left', 'right'):
+        full, compensated = (runs[interface][f'{arm}_tau'] for interface in runs)
+        assert np.abs(full).max() > 10.0, 'gravity torques are tens of N m'
+        np.testing.assert_allclose(compensated, full, atol=1e-6)

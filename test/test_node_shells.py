@@ -19,16 +19,19 @@ from dual_arm_control.core.passive_control import (hold_torque, PassiveControlle
 from dual_arm_control.core.tracker import TrackerConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
-from dual_arm_control.nodes.messages import fill_odometry, stamp_ns, time_msg
+from dual_arm_control.nodes.messages import (arm_command_message, arm_command_of, fill_odometry,
+                                             stamp_ns, time_msg)
 from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
 from dual_arm_control.nodes.passive_controller import PassiveControllerNode
 from dual_arm_control.nodes.wrench_qp import WrenchQPNode
+from dual_arm_control.runtime.signals import ArmCommandSample
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import scenario_path
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
+from rclpy.qos import qos_profile_sensor_data
 
 SPIN_TIMEOUT = 10.0
 # Wall time the executor keeps spinning to show that a message is NOT sent.
@@ -221,6 +224,24 @@ def test_tracker_restarts_when_the_clock_goes_back(tracker):
     assert tracker.node.step.refusals.counts == {'old_stamp': 1}
 
 
+def test_a_best_effort_mocap_driver_drives_the_tracker(harness_factory):
+    """A motion-capture driver publishing with the sensor-data QoS (best effort) connects."""
+    harness = harness_factory(lambda context: ObjectTrackerNode(context=context))
+    publisher = harness.probe.node.create_publisher(
+        contract.MOCAP_OBJECT_POSE.msg_type, contract.MOCAP_OBJECT_POSE.name,
+        qos_profile_sensor_data)
+    answers = harness.record(contract.OBJECT_STATE)
+    assert harness.spin_until(lambda: publisher.get_subscription_count() > 0)
+    rng = np.random.default_rng(8)
+    for k in range(20):
+        publisher.publish(mocap_sample(k * SAMPLE_PERIOD_NS, *noisy_pose(rng)))
+        assert harness.spin_until(lambda: len(answers) == k + 1)
+    position = answers[-1].pose.pose.position
+    assert np.linalg.norm([position.x - P_WORLD_OBJECT[0], position.y - P_WORLD_OBJECT[1],
+                           position.z - P_WORLD_OBJECT[2]]) < 2e-3
+    assert harness.node.step.counters['samples_used'] == 20
+
+
 # -- passive_controller --------------------------------------------------------------------------
 
 Q_HOME_LEFT = CELL.arm('left').q_home
@@ -265,17 +286,10 @@ def joint_state(t_ns, q, dq, arm='left'):
 
 
 def ds_command(t_ns, v_world, w_world, R_world):
-    msg = contract.DS_COMMAND.msg_type()
-    msg.header.stamp = time_msg(t_ns)
-    msg.header.frame_id = contract.WORLD_FRAME
-    msg.child_frame_id = 'left_tool'
-    orientation = msg.pose.pose.orientation
-    orientation.x, orientation.y, orientation.z, orientation.w = (
-        float(v) for v in matrix_to_quat_xyzw(R_world))
-    twist = msg.twist.twist
-    twist.linear.x, twist.linear.y, twist.linear.z = (float(v) for v in v_world)
-    twist.angular.x, twist.angular.y, twist.angular.z = (float(v) for v in w_world)
-    return msg
+    """Return the left arm's ds_command message (values unchecked: NaN passes through)."""
+    return arm_command_message('left', ArmCommandSample(
+        t_ns, np.zeros(3), matrix_to_quat_xyzw(R_world), np.asarray(v_world, float),
+        np.asarray(w_world, float)))
 
 
 def contact_wrench(t_ns, wrench):
@@ -601,10 +615,9 @@ def run_cycles(harness, count):
                                       and len(phases) - first_phase == ticks), t_ns
     result = []
     for phase, command in zip(phases[first_phase:], commands[first_command:]):
-        pose, twist = command.pose.pose, command.twist.twist
-        result.append((phase.status[0].message, stamp_ns(command.header.stamp),
-                       (pose.position.x, pose.position.y, pose.position.z, twist.linear.x,
-                        twist.linear.y, twist.linear.z)))
+        sample = arm_command_of(command)
+        result.append((phase.status[0].message, sample.stamp_ns,
+                       (*sample.p_world_attractor, *sample.v_world)))
     return result
 
 

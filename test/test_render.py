@@ -74,7 +74,7 @@ def write_bag(path, scenario, with_joints=True):
                            for arm in contract.ARMS})
         for name, topic in topics.items():
             writer.add_topic(name, topic.msg_type, topic.qos)
-        writer.add_topic(render.PARAMETER_EVENTS_TOPIC, ParameterEvent, contract.SENSOR_QOS)
+        writer.add_topic(render.PARAMETER_EVENTS_TOPIC, ParameterEvent, contract.MONITOR_QOS)
         event = ParameterEvent(node='/sim_bridge', new_parameters=[Parameter(
             name='scenario', value=ParameterValue(type=ParameterType.PARAMETER_STRING,
                                                   string_value=str(scenario.path)))])

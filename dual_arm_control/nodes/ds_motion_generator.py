@@ -19,7 +19,7 @@ from dual_arm_control.core.motion_generator import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.markers import motion_markers
-from dual_arm_control.nodes.messages import (fill_arm_command, fill_twist, joint_state_of,
+from dual_arm_control.nodes.messages import (arm_command_message, fill_twist, joint_state_of,
                                              object_state_of, phase_message, stamp_ns,
                                              time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
@@ -66,10 +66,6 @@ class DsMotionGenerator(Node):
         self._diagnostics = CounterDiagnostics(self)
         self._command_pubs = {arm: create_topic_publisher(self, contract.DS_COMMAND, arm)
                               for arm in ARMS}
-        self._command_msgs = {arm: contract.DS_COMMAND.msg_type() for arm in ARMS}
-        for arm in ARMS:
-            self._command_msgs[arm].header.frame_id = contract.WORLD_FRAME
-            self._command_msgs[arm].child_frame_id = f'{arm}_tool'
         self._twist_pub = create_topic_publisher(self, contract.OBJECT_DESIRED_TWIST)
         self._twist_msg = contract.OBJECT_DESIRED_TWIST.msg_type()
         self._twist_msg.header.frame_id = contract.WORLD_FRAME
@@ -138,8 +134,7 @@ class DsMotionGenerator(Node):
             self.get_logger().info(f'{PHASE_LOG_PREFIX}{tick.stamp_ns * 1e-9:.3f} s: '
                                    f'{tick.phase.phase.value}{events}: {tick.phase.reason}')
         for arm in ARMS:
-            fill_arm_command(self._command_msgs[arm], tick.commands[arm])
-            self._command_pubs[arm].publish(self._command_msgs[arm])
+            self._command_pubs[arm].publish(arm_command_message(arm, tick.commands[arm]))
         fill_twist(self._twist_msg, tick.desired_twist)
         self._twist_pub.publish(self._twist_msg)
         self._phase_pub.publish(phase_message(tick.phase))

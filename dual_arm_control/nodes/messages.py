@@ -9,13 +9,16 @@ raises InputError naming the problem. Stamps are integer nanoseconds.
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
+from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw
 from dual_arm_control.runtime.signals import (arm_command_sample, joint_state_sample,
                                               no_object_state, object_state, phase_sample,
                                               pose_sample, twist_sample, wrench_sample)
 from dual_arm_control.runtime.timing import NANOSECONDS_PER_SECOND
+from geometry_msgs.msg import Transform, Twist
 import numpy as np
 from std_msgs.msg import Header
+from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 
 def time_msg(stamp_ns):
@@ -132,21 +135,38 @@ def fill_object_state(msg, state):
     msg.header.stamp = time_msg(state.stamp_ns)
     set_odometry(msg, state.position, state.quat_xyzw, state.linear_velocity,
                  state.angular_velocity)
-    msg.pose.covariance[0] = 0.0 if state.valid else contract.NO_ESTIMATE_COVARIANCE
+    for covariance, values in ((msg.pose.covariance, state.pose_covariance),
+                               (msg.twist.covariance, state.twist_covariance)):
+        covariance[:] = np.zeros(36) if values is None else np.ravel(values)
+    if not state.valid:
+        msg.pose.covariance[0] = contract.NO_ESTIMATE_COVARIANCE
 
 
 def arm_command_of(msg):
-    """Return the ArmCommandSample of a ds_command Odometry."""
-    return arm_command_sample(stamp_ns(msg.header.stamp), vector3(msg.pose.pose.position),
-                              quaternion(msg.pose.pose.orientation),
-                              vector3(msg.twist.twist.linear), vector3(msg.twist.twist.angular))
+    """Return the ArmCommandSample of a ds_command (one-point MultiDOFJointTrajectory)."""
+    if len(msg.points) != 1 or len(msg.points[0].transforms) != 1 \
+            or len(msg.points[0].velocities) != 1:
+        raise InputError('a DS command is one trajectory point with one transform and one '
+                         f'velocity, got {len(msg.points)} point(s)')
+    point = msg.points[0]
+    transform, velocity = point.transforms[0], point.velocities[0]
+    return arm_command_sample(stamp_ns(msg.header.stamp), vector3(transform.translation),
+                              quaternion(transform.rotation), vector3(velocity.linear),
+                              vector3(velocity.angular))
 
 
-def fill_arm_command(msg, sample):
-    """Write an ArmCommandSample into a ds_command Odometry."""
-    msg.header.stamp = time_msg(sample.stamp_ns)
-    set_odometry(msg, sample.p_world_attractor, sample.quat_xyzw, sample.v_world,
-                 sample.w_world)
+def arm_command_message(arm, sample):
+    """Return the ds_command of an ArmCommandSample for arm (joint '<arm>_tool', frame world)."""
+    transform = Transform()
+    set_vector3(transform.translation, sample.p_world_attractor)
+    set_quaternion(transform.rotation, sample.quat_xyzw)
+    velocity = Twist()
+    set_vector3(velocity.linear, sample.v_world)
+    set_vector3(velocity.angular, sample.w_world)
+    point = MultiDOFJointTrajectoryPoint(transforms=[transform], velocities=[velocity],
+                                         accelerations=[Twist()])
+    return MultiDOFJointTrajectory(header=header(sample.stamp_ns), joint_names=[f'{arm}_tool'],
+                                   points=[point])
 
 
 def twist_of(msg):

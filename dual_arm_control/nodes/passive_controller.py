@@ -45,7 +45,8 @@ class PassiveControllerNode(Node):
         cell = load_cell()
         self.step = ControllerStep(arm_model(self.arm, cell), cell.arm(self.arm).q_home,
                                    parameters.config, settings['ds_period'],
-                                   settings['command_timeout'], refusal_logger(self.get_logger()))
+                                   settings['command_timeout'], settings['torque_interface'],
+                                   refusal_logger(self.get_logger()))
         self._joint_names = contract.joint_names(self.arm)
         self._joint_state = None
         self._barrier = ArrivalBarrier(self._required)
@@ -64,6 +65,7 @@ class PassiveControllerNode(Node):
                                       f'{self.get_namespace()}, expected /{self.arm}')
         self.get_logger().info(
             f'{self.arm} passive controller up: {"lockstep" if self.lockstep else "realtime"}, '
+            f'torque interface {settings["torque_interface"]}, '
             f'ticks every {settings["ds_period"] * 1e3:g} ms, state '
             f'{self._joint_state_sub.topic_name} -> command {self._torque_pub.topic_name}')
 

@@ -7,6 +7,10 @@ from the cycle, or none yet, gives the hold torque g(q) - D_hold dq (counted); a
 that old is dropped (counted). The same cycle stamp again is answered with the same torque; an
 earlier stamp (simulation reset) restarts the tick schedule. In lockstep, a node answers a DS
 tick cycle only once the command and wrench of that tick arrived (needs_tick_inputs).
+
+With a gravity-compensated torque interface (KUKA FRI torque mode: the robot adds its own
+gravity compensation) the command is the joint torque minus the model's g(q), so gravity is not
+compensated twice; the torque limits still bound the whole joint torque.
 """
 
 from dual_arm_control.core.passive_control import hold_torque, PassiveController
@@ -25,11 +29,14 @@ class ControllerStep:
     The controller role of one arm.
 
     model: the arm's ArmModel; q_null (7,) [rad]: null-space posture; config:
-    PassiveControllerConfig; ds_period [s]: the DS tick period; command_timeout [s].
+    PassiveControllerConfig; ds_period [s]: the DS tick period; command_timeout [s];
+    torque_interface: 'full' or 'gravity_compensated'.
     """
 
-    def __init__(self, model, q_null, config, ds_period, command_timeout, on_refusal=None):
+    def __init__(self, model, q_null, config, ds_period, command_timeout,
+                 torque_interface='full', on_refusal=None):
         self._model = model
+        self._gravity_compensated = torque_interface == 'gravity_compensated'
         self._q_null = q_null
         self._controller = PassiveController(model, q_null, config)
         self._torque_limits = np.asarray(model.torque_limits, dtype=float)
@@ -89,8 +96,10 @@ class ControllerStep:
             self._controller = PassiveController(self._model, self._q_null,
                                                  self._pending_config)
             self._pending_config = None
-        self._last_answer = TorqueSample(stamp_ns, self._torque(stamp_ns, joint_state.position,
-                                                                joint_state.velocity))
+        torque = self._torque(stamp_ns, joint_state.position, joint_state.velocity)
+        if self._gravity_compensated:
+            torque = torque - self._model.gravity_torque(joint_state.position)
+        self._last_answer = TorqueSample(stamp_ns, torque)
         return self._last_answer
 
     def _torque(self, stamp_ns, q, dq):

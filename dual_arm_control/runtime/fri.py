@@ -2,8 +2,8 @@
 The FRI cycle of the robots' side: state out, one torque command per arm in, then a step.
 
 FriCycle drives a backend (the MuJoCo twin, or anything with its interface: time,
-joint_state(arm), ft_wrench(arm), mocap_samples(), hold_torques(arm), torque_limits(arm),
-step(torques)) the way KUKA's FRI drives a robot:
+joint_state(arm), ft_wrench(arm), mocap_samples(), hold_torques(arm), step(torques) returning
+what it clamped and applied) the way KUKA's FRI drives a robot:
 
 - begin() returns the state of the current cycle (what the robots report) and awaits one command
   per arm stamped with it;
@@ -154,13 +154,12 @@ class FriCycle:
         return [arm for arm, answer in self._answers.items() if answer is None]
 
     def advance(self):
-        """Apply this cycle's torques (see the module text), step the backend; return them."""
+        """Apply this cycle's commands (module text), step the backend; return applied torques."""
         torques = {arm: self._torque(arm) for arm in ARMS}
         report = self.backend.step(torques)
         for arm in ARMS:
             self.counters[arm].clamps += int(report.clamped[arm])
-            limits = self.backend.torque_limits(arm)
-            self.applied[arm] = np.clip(torques[arm], -limits, limits)
+            self.applied[arm] = report.applied[arm]
         self.cycles += 1
         return self.applied
 

@@ -25,6 +25,7 @@ DS_PERIOD = 0.005
 COMMAND_TIMEOUT = 0.05
 """Age [s, sim time] beyond which a controller's DS command or contact wrench is stale."""
 MODES = ('lockstep', 'realtime')
+TORQUE_INTERFACES = ('full', 'gravity_compensated')
 MAX_DURATION = 1.0e6
 MAX_OBJECT_DISPLACEMENT = 2.0
 OBJECT_MASS_RANGE = (1e-3, 100.0)
@@ -43,6 +44,11 @@ SCENARIO = Setting(
 FRI_PERIOD_SETTING = Setting(
     'fri_period', FRI_PERIOD, 'FRI cycle: joint state out, torque command in', 's',
     choices=FRI_PERIODS, read_only=True)
+TORQUE_INTERFACE = Setting(
+    'torque_interface', 'full', 'full: the torque command is the whole joint torque (the twin, '
+    'a plain torque drive); gravity_compensated: the robot adds its own gravity compensation '
+    '(KUKA FRI torque mode), so the controllers leave g(q) out. Controllers and bridge must '
+    'agree', choices=TORQUE_INTERFACES, read_only=True)
 DS_PERIOD_SETTING = Setting(
     'ds_period', DS_PERIOD, 'period of the DS and wrench QP ticks on the FRI cycle grid', 's',
     0.001, 0.1, read_only=True)
@@ -68,7 +74,7 @@ NODE_TABLES = {
         Setting('mode', 'lockstep', 'lockstep: advance when every arm answered '
                 '(deterministic); realtime: paced by the wall clock with the FRI watchdog',
                 choices=MODES, read_only=True),
-        FRI_PERIOD_SETTING,
+        FRI_PERIOD_SETTING, TORQUE_INTERFACE,
         Setting('duration', 0.0, 'sim time at which the run ends and the bridge exits 0; 0 = '
                 'the duration of the scenario', 's', 0.0, MAX_DURATION),
         Setting('trajectory_log', '', 'if set: .npz ground-truth trajectory written on exit '
@@ -115,7 +121,7 @@ NODE_TABLES = {
         Setting('arm', '', 'which arm this controller drives (no default: set it per '
                 'namespace)', choices=('left', 'right'), read_only=True),
         Setting('lockstep', True, LOCKSTEP.description, read_only=True),
-        FRI_PERIOD_SETTING, DS_PERIOD_SETTING,
+        FRI_PERIOD_SETTING, DS_PERIOD_SETTING, TORQUE_INTERFACE,
         Setting('command_timeout', COMMAND_TIMEOUT, 'a ds_command or contact_wrench further '
                 'than this from the cycle is stale: hold torque / no wrench (sim time; must '
                 'exceed ds_period + fri_period)', 's', 0.0, 1.0, low_open=True),

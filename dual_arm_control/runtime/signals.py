@@ -105,6 +105,8 @@ class ObjectState:
     The tracker's estimate at a stamp: pose and twist in the world, or no estimate.
 
     valid False (no track yet) leaves the arrays at zero and the identity quaternion.
+    pose_covariance and twist_covariance (6, 6), rows x, y, z, rotation x, y, z (world), are
+    the filter's where it reports them (None otherwise).
     """
 
     stamp_ns: int
@@ -113,6 +115,8 @@ class ObjectState:
     quat_xyzw: np.ndarray
     linear_velocity: np.ndarray
     angular_velocity: np.ndarray
+    pose_covariance: np.ndarray = None
+    twist_covariance: np.ndarray = None
 
     @property
     def R_world_object(self):

@@ -37,9 +37,20 @@ OUTCOME_COUNTERS = {
 }
 
 
+def _block_diagonal(upper, lower):
+    covariance = np.zeros((6, 6))
+    covariance[:3, :3] = upper
+    covariance[3:, 3:] = lower
+    return covariance
+
+
 def _state(stamp_ns, estimate):
     return ObjectState(stamp_ns, True, estimate.position, estimate.quat_xyzw,
-                       estimate.linear_velocity, estimate.angular_velocity)
+                       estimate.linear_velocity, estimate.angular_velocity,
+                       _block_diagonal(estimate.position_covariance,
+                                       estimate.orientation_covariance),
+                       _block_diagonal(estimate.linear_velocity_covariance,
+                                       estimate.angular_velocity_covariance))
 
 
 class TrackerStep:
