@@ -73,11 +73,10 @@ def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None, r
     parameters = {'sim_bridge': {'mode': mode}}
     awaited = [spec.full_name for spec in GRAPHS[graph]() if spec.name != 'sim_bridge']
     if record:
-        parameters['sim_bridge']['lockstep_wait_for_subscribers'] = True
-        parameters['sim_bridge']['lockstep_wait_for_recorder'] = True
+        parameters['sim_bridge']['wait_for_subscribers'] = True
+        parameters['sim_bridge']['wait_for_recorder'] = True
         awaited.append(RECORDER_NODE)
-    if mode == 'lockstep':
-        parameters['sim_bridge']['lockstep_wait_for_nodes'] = awaited
+    parameters['sim_bridge']['wait_for_nodes'] = awaited
     if scenario is not None:
         parameters['sim_bridge']['scenario'] = str(scenario)
     else:
@@ -89,7 +88,7 @@ def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None, r
             parameters['ds_motion_generator'] = {'scenario': str(scenario),
                                                  'auto_start_time': EPISODE_START_TIME}
             parameters['wrench_qp'] = {'scenario': str(scenario)}
-        for name in ('ds_motion_generator', 'wrench_qp'):
+        for name in ('object_tracker', 'ds_motion_generator', 'wrench_qp'):
             parameters.setdefault(name, {})['lockstep'] = mode == 'lockstep'
         parameters['passive_controller'] = {'lockstep': mode == 'lockstep'}
         if mode != 'lockstep':

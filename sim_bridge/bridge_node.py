@@ -10,10 +10,13 @@ hold policy). Two modes:
   when every arm answered with a command stamped t_k (a refused command counts as the answer:
   that arm holds). Until then the state is republished every `lockstep_republish_period` wall
   seconds (discovery, lost messages). With lockstep_wait_for_tracker the cycle's mocap samples go
-  out first and the rest only after the tracker answered each. The first state waits for the
-  graph (lockstep_start.GraphReadiness). Deterministic.
+  out first and the rest only after the tracker answered each. Deterministic.
 - realtime: a wall-clock timer paces the cycles like a real robot; at each deadline the twin
   advances with whatever arrived (FriCycle's hold policy for the rest); late cycles are counted.
+
+In both modes the first state (and in realtime the clock) waits for the awaited graph
+(`wait_for_nodes`, `wait_for_subscribers`, `wait_for_recorder`; lockstep_start.GraphReadiness),
+so every node sees the run from its first cycle.
 
 The trajectory log (`trajectory_log`) has one row per cycle: row 0 the initial state (zero
 torque), row k + 1 the state after cycle k with the torque applied during it; the counters are
@@ -54,6 +57,8 @@ LOG_THROTTLE_PERIOD = 1.0
 WAITING_WARNING_DELAY = 2.0
 # Wall time to let the graph's publishers match once it is complete, before the first state [s].
 SUBSCRIBER_SETTLE_TIME = 1.0
+# Wall time between two checks of the awaited graph before the start [s].
+STARTUP_CHECK_PERIOD = 0.05
 
 
 class SimBridge(Node):
@@ -91,19 +96,17 @@ class SimBridge(Node):
         self._recorder = None
         self._create_interfaces()
         self._readiness = GraphReadiness(
-            self, self._streams, settings['lockstep_wait_for_nodes'] if lockstep else [],
-            lockstep and settings['lockstep_wait_for_subscribers'],
-            lockstep and settings['lockstep_wait_for_recorder'])
+            self, self._streams, settings['wait_for_nodes'], settings['wait_for_subscribers'],
+            settings['wait_for_recorder'])
         self._started = False
         self._ready_wall = None
-        if not self._readiness.waits:
-            self._start_episode()
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
-        if lockstep:
-            self._timer = self.create_timer(self._republish_period / 2.0, self._on_republish_timer,
-                                            clock=steady)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._timer = None
+        if self._readiness.waits:
+            self._startup_timer = self.create_timer(STARTUP_CHECK_PERIOD, self._on_startup_timer,
+                                                    clock=self._steady)
         else:
-            self._timer = self.create_timer(self.fri_period, self._on_fri_tick, clock=steady)
+            self._start_running()
         self.get_logger().info(
             f'sim_bridge up: mode {self.mode}, FRI period {self.fri_period * 1e3:g} ms, torque '
             f'interface {self.twin.torque_interface}, scenario '
@@ -183,18 +186,31 @@ class SimBridge(Node):
             if not self._awaited_tracker_ns:
                 self._publish_cycle_state()
 
+    def _on_startup_timer(self):
+        """Start once the awaited graph is ready and has settled for SUBSCRIBER_SETTLE_TIME."""
+        now = time.monotonic()
+        if not self._readiness.ready():
+            self._ready_wall = None
+        elif self._ready_wall is None:
+            self._ready_wall = now
+        elif now - self._ready_wall >= SUBSCRIBER_SETTLE_TIME:
+            self.destroy_timer(self._startup_timer)
+            self._start_running()
+
+    def _start_running(self):
+        """Publish the first state and start the mode's timer (republish, or the FRI clock)."""
+        self._start_episode()
+        if self.mode == 'lockstep':
+            self._timer = self.create_timer(self._republish_period / 2.0,
+                                            self._on_republish_timer, clock=self._steady)
+        else:
+            self._timer = self.create_timer(self.fri_period, self._on_fri_tick,
+                                            clock=self._steady)
+
     def _on_republish_timer(self):
-        """Lockstep: start once the graph is ready; republish the awaited state when overdue."""
+        """Lockstep: publish the awaited state again when its answers are overdue."""
         now = time.monotonic()
         if now - self._last_publish_wall < self._republish_period:
-            return
-        if not self._started:
-            if not self._readiness.ready():
-                self._ready_wall = None
-            elif self._ready_wall is None:
-                self._ready_wall = now
-            elif now - self._ready_wall >= SUBSCRIBER_SETTLE_TIME:
-                self._start_episode()
             return
         if self._awaited_tracker_ns:
             self._publish_mocap()

@@ -204,9 +204,9 @@ def graph_bag(tmp_path_factory):
     params = tmp_path / 'params.yaml'
     awaited = [RECORDER_NODE, *(spec.full_name for spec in full_graph())]
     params.write_text(f'sim_bridge:\n  ros__parameters:\n    duration: {SIM_DURATION}\n'
-                      '    lockstep_wait_for_subscribers: true\n'
-                      '    lockstep_wait_for_recorder: true\n'
-                      f'    lockstep_wait_for_nodes: {json.dumps(awaited)}\n')
+                      '    wait_for_subscribers: true\n'
+                      '    wait_for_recorder: true\n'
+                      f'    wait_for_nodes: {json.dumps(awaited)}\n')
     bag = tmp_path / 'graph.mcap'
     recorder, log_path = start_recorder(tmp_path, domain_id, bag)
     try:
@@ -249,7 +249,7 @@ def test_recorded_counts_match_what_was_published(graph_bag):
 
     Every node prints its published counts on exit (after its subscribers acknowledged the
     last message). The bridge publishes its first state only once the recorder reports that it
-    matched every publisher the bridge sees (lockstep_wait_for_recorder). On top of the
+    matched every publisher the bridge sees (wait_for_recorder). On top of the
     counts, every stepped cycle's joint states, FT readings and torque commands are there once
     from sim time 0, and one phase per DS tick (TickSchedule) of the stepped cycles.
     """

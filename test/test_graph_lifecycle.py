@@ -160,7 +160,7 @@ def test_a_controller_that_missed_the_first_tick_catches_up(tmp_path, ros_domain
     from dual_arm_control.graph import full_graph, run_parameters
     from dual_arm_control.resources import config_path
     parameters = run_parameters('full', config_path('scenarios', 'paper_toss.yaml'), 'lockstep')
-    parameters['sim_bridge'].pop('lockstep_wait_for_nodes')
+    parameters['sim_bridge'].pop('wait_for_nodes')
     parameters['sim_bridge']['duration'] = 0.1
     late = [spec for spec in full_graph() if spec.label == 'right_passive_controller']
     early = [spec for spec in full_graph() if spec not in late]

@@ -349,19 +349,44 @@ class ObjectTracker:
         self._samples_used += 1
         return MeasurementOutcome.INITIALISED
 
-    def _prediction(self, t):
-        """Return the prior mean and covariances propagated from the posterior to time t."""
+    def mean_state(self, t):
+        """
+        Return (position, quat_xyzw, linear velocity, angular velocity) predicted to t [s].
+
+        The mean of state(t) without its covariances (bit for bit the same numbers), for callers
+        that need the estimate at every cycle; None before the first sample.
+        """
+        if self._posterior_stamp is None:
+            return None
+        t = float(t)
+        if self._is_lost(t):
+            return (self._position.copy(), matrix_to_quat_xyzw(self._R_world_object),
+                    np.zeros(3), np.zeros(3))
+        position, velocity, _, R_world_object = self._mean_prediction(t)
+        return (position, matrix_to_quat_xyzw(R_world_object), velocity,
+                self._angular_velocity.copy())
+
+    def _mean_prediction(self, t):
+        """Return (position, velocity, rotation increment, R_world_object) predicted to t."""
         dt = t - self._posterior_stamp
         gravity_displacement, gravity_velocity = self._gravity_effect(self._posterior_stamp, t)
         position = self._position + self._velocity * dt
         velocity = self._velocity.copy()
         position[2] += gravity_displacement
         velocity[2] += gravity_velocity
+        rotation_increment = self._angular_velocity * dt
+        rotation_transition = rotation_exp(rotation_increment)
+        return (position, velocity, rotation_increment,
+                rotation_transition @ self._R_world_object)
+
+    def _prediction(self, t):
+        """Return the prior mean and covariances propagated from the posterior to time t."""
+        dt = t - self._posterior_stamp
+        position, velocity, rotation_increment, R_world_object = self._mean_prediction(t)
         transition = np.array([[1.0, dt], [0.0, 1.0]])
         covariance_position = (transition @ self._covariance_position @ transition.T
                                + white_acceleration_noise(self._q_position, dt))
 
-        rotation_increment = self._angular_velocity * dt
         rotation_transition = rotation_exp(rotation_increment)
         F = _IDENTITY_6.copy()
         F[:3, :3] = rotation_transition
@@ -376,7 +401,7 @@ class ObjectTracker:
             'position': position,
             'velocity': velocity,
             'covariance_position': covariance_position,
-            'R_world_object': rotation_transition @ self._R_world_object,
+            'R_world_object': R_world_object,
             'angular_velocity': self._angular_velocity.copy(),
             'covariance_orientation': covariance_orientation,
         }

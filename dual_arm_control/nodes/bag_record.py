@@ -4,7 +4,7 @@ bag_record: record topics of the graph, as published (serialized CDR), into an M
 By default every topic of the contract plus /parameter_events and /rosout; topics given on the
 command line or matching --regex instead. Contract topics are subscribed at once with their
 contract QoS (so the subscriptions exist before the graph starts: a bridge started with
-lockstep_wait_for_recorder waits for them); other topics as their publishers appear (the graph
+wait_for_recorder waits for them); other topics as their publishers appear (the graph
 is polled every 0.5 s), with a QoS compatible with every publisher: reliable and transient
 local only if each publisher offers it. SIGINT/SIGTERM first take what was already delivered,
 then close the bag with its summary.

@@ -14,14 +14,13 @@ import sys
 from diagnostic_msgs.msg import DiagnosticStatus
 from dual_arm_control import contract
 from dual_arm_control.contract import ARMS, joint_names
-from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.markers import motion_markers
 from dual_arm_control.nodes.messages import (arm_command_message, fill_twist, joint_state_of,
-                                             object_state_of, phase_message, stamp_ns,
-                                             time_msg, wrench_of)
+                                             LatestMessage, object_state_of, phase_message,
+                                             stamp_ns, time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import ConfigParameters, NodeParameters
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
@@ -59,8 +58,13 @@ class DsMotionGenerator(Node):
         self._barrier = ArrivalBarrier(
             lambda t: CYCLE_INPUTS | ({'object'} if lockstep and self.step.is_new_tick(t)
                                       else set()))
-        self._names = {arm: joint_names(arm) for arm in ARMS}
-        self._joints, self._ft, self._object = {}, {}, {}
+        refuse = self.step.refusals.refuse
+        self._inputs = {'object': LatestMessage(object_state_of, 'object', refuse)}
+        for arm in ARMS:
+            self._inputs[f'{arm}_joints'] = LatestMessage(
+                lambda msg, names=joint_names(arm): joint_state_of(msg, names), f'{arm}_joints',
+                refuse)
+            self._inputs[f'{arm}_ft'] = LatestMessage(wrench_of, f'{arm}_ft', refuse)
         self._last_marker_ns = None
         self._last_logged_ns = None
         self._diagnostics = CounterDiagnostics(self)
@@ -74,12 +78,14 @@ class DsMotionGenerator(Node):
         for arm in ARMS:
             self.create_subscription(
                 contract.JOINT_STATES.msg_type, contract.JOINT_STATES.resolved(arm),
-                lambda msg, arm=arm: self._on_joint_state(arm, msg), contract.JOINT_STATES.qos)
+                lambda msg, arm=arm: self._on_input(f'{arm}_joints', msg),
+                contract.JOINT_STATES.qos)
             self.create_subscription(
                 contract.FT_WRENCH.msg_type, contract.FT_WRENCH.resolved(arm),
-                lambda msg, arm=arm: self._on_ft(arm, msg), contract.FT_WRENCH.qos)
+                lambda msg, arm=arm: self._on_input(f'{arm}_ft', msg), contract.FT_WRENCH.qos)
         self.create_subscription(contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
-                                 self._on_object, contract.OBJECT_STATE.qos)
+                                 lambda msg: self._on_input('object', msg),
+                                 contract.OBJECT_STATE.qos)
         for service, command in ((contract.START_EPISODE_SERVICE, 'start'),
                                  (contract.GO_HOME_SERVICE, 'go_home'),
                                  (contract.RESET_EPISODE_SERVICE, 'reset')):
@@ -101,29 +107,17 @@ class DsMotionGenerator(Node):
         response.message = f'{command} requested for the next DS tick'
         return response
 
-    def _take(self, store, key, name, read, msg):
-        """Keep msg's value (read(msg)) as the newest; a refused one still counts as arrived."""
-        try:
-            store[key] = read(msg)
-        except InputError as error:
-            self.step.refusals.refuse(name, str(error))
+    def _on_input(self, name, msg):
+        self._inputs[name].offer(msg)
         self._run(self._barrier.arrived(stamp_ns(msg.header.stamp), name))
-
-    def _on_joint_state(self, arm, msg):
-        self._take(self._joints, arm, f'{arm}_joints',
-                   lambda m: joint_state_of(m, self._names[arm]), msg)
-
-    def _on_ft(self, arm, msg):
-        self._take(self._ft, arm, f'{arm}_ft', wrench_of, msg)
-
-    def _on_object(self, msg):
-        self._take(self._object, 'object', 'object', object_state_of, msg)
 
     def _run(self, stamps):
         for t_ns in stamps:
-            if len(self._joints) < len(ARMS) or len(self._ft) < len(ARMS):
+            joints = {arm: self._inputs[f'{arm}_joints'].value() for arm in ARMS}
+            ft = {arm: self._inputs[f'{arm}_ft'].value() for arm in ARMS}
+            if None in joints.values() or None in ft.values():
                 continue
-            tick = self.step.cycle(t_ns, self._joints, self._ft, self._object.get('object'))
+            tick = self.step.cycle(t_ns, joints, ft, self._inputs['object'].value())
             if tick is not None:
                 self._publish(tick)
 

@@ -204,3 +204,35 @@ def phase_of(msg):
                                 values.get('task'), values.get('time_in_phase', 'nan'),
                                 events, values.get('reason', ''))
     return phase_sample(stamp_ns(msg.header.stamp), None, None, 'nan')
+
+
+class LatestMessage:
+    """
+    The newest message of an input, read (converted and checked) only when its value is used.
+
+    Sensor streams arrive at 500 Hz while a tick uses them at 200 Hz: keeping the raw message
+    and reading it on use saves the conversion of the others. value() returns the reading of the
+    newest message, or, if that one is refused (InputError, counted by refuse(reason, detail)),
+    the last valid reading; None before any valid one.
+    """
+
+    def __init__(self, read, name, refuse):
+        self._read = read
+        self._name = name
+        self._refuse = refuse
+        self._message = None
+        self._value = None
+
+    def offer(self, msg):
+        """Keep msg as the newest message (read later)."""
+        self._message = msg
+
+    def value(self):
+        """Return the newest valid reading (see the class text)."""
+        if self._message is not None:
+            msg, self._message = self._message, None
+            try:
+                self._value = self._read(msg)
+            except InputError as error:
+                self._refuse(self._name, f'stamp {stamp_ns(msg.header.stamp)} ns: {error}')
+        return self._value

@@ -4,9 +4,10 @@ object_tracker: the object's pose and twist from motion capture (runtime Tracker
 Every accepted /mocap/object_pose sample is answered by one /object/state (nav_msgs/Odometry,
 frame world, child 'object') with the sample's stamp; every /clock cycle by one more, stamped
 with the cycle: the estimate then, or the news that there is no track yet. The lockstep bridge
-waits for the first kind, the lockstep DS and wrench QP for the second. What is refused, and
+waits for the first kind, the lockstep DS and wrench QP for the second (only with `lockstep`;
+in realtime they use the newest estimate). What is refused, and
 when a new TrackerConfig applies, is the runtime step's business (runtime/tracker_step.py).
-Parameters: the TrackerConfig fields (live) and diagnostics_period.
+Parameters: the TrackerConfig fields (live), lockstep and diagnostics_period.
 """
 
 import sys
@@ -28,7 +29,7 @@ class ObjectTrackerNode(Node):
 
     def __init__(self, node_name='object_tracker', **node_options):
         super().__init__(node_name, **node_options)
-        NodeParameters(self, node_table('object_tracker').settings)
+        settings = NodeParameters(self, node_table('object_tracker').settings)
         self._diagnostics = CounterDiagnostics(self)
         parameters = ConfigParameters(self, TrackerConfig(), self._on_config)
         self.step = TrackerStep(parameters.config, refusal_logger(self.get_logger()))
@@ -40,8 +41,9 @@ class ObjectTrackerNode(Node):
         self._mocap_sub = self.create_subscription(
             contract.MOCAP_OBJECT_POSE.msg_type, contract.MOCAP_OBJECT_POSE.name, self._on_mocap,
             contract.MOCAP_OBJECT_POSE.qos)
-        self._clock_sub = self.create_subscription(
-            contract.CLOCK.msg_type, contract.CLOCK.name, self._on_clock, contract.CLOCK.qos)
+        if settings['lockstep']:
+            self.create_subscription(contract.CLOCK.msg_type, contract.CLOCK.name,
+                                     self._on_clock, contract.CLOCK.qos)
         self.get_logger().info(
             f'object tracker up: {self._mocap_sub.topic_name} -> {self._state_pub.topic_name}')
 

@@ -16,12 +16,11 @@ import sys
 from diagnostic_msgs.msg import DiagnosticStatus
 from dual_arm_control import contract
 from dual_arm_control.catalogue import object_spec
-from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.wrench_distribution import WrenchDistributorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
-from dual_arm_control.nodes.messages import (fill_wrench, joint_state_of, object_state_of,
-                                             phase_of, stamp_ns, twist_of)
+from dual_arm_control.nodes.messages import (fill_wrench, joint_state_of, LatestMessage,
+                                             object_state_of, phase_of, stamp_ns, twist_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import ConfigParameters, NodeParameters
 from dual_arm_control.runtime.inputs import ArrivalBarrier, RefusalCounter
@@ -60,7 +59,6 @@ class WrenchQPNode(Node):
         self.refusals = RefusalCounter(refusal_logger(self.get_logger()))
         required = TICK_INPUTS | ({'object'} if lockstep else set())
         self._barrier = ArrivalBarrier(lambda stamp: required)
-        self._latest = {}
         self._wrench_pubs = {arm: create_topic_publisher(self, contract.CONTACT_WRENCH, arm)
                              for arm in contract.ARMS}
         self._wrench_msgs = {arm: contract.CONTACT_WRENCH.msg_type() for arm in contract.ARMS}
@@ -71,11 +69,13 @@ class WrenchQPNode(Node):
                    'desired_twist', twist_of),
                   (contract.PHASE, contract.PHASE.name, 'phase', phase_of)]
         inputs += [(contract.JOINT_STATES, contract.JOINT_STATES.resolved(arm), arm,
-                    lambda msg, arm=arm: joint_state_of(msg, contract.joint_names(arm)))
+                    lambda msg, names=contract.joint_names(arm): joint_state_of(msg, names))
                    for arm in contract.ARMS]
+        self._inputs = {key: LatestMessage(read, key, self.refusals.refuse)
+                        for _, _, key, read in inputs}
         self._input_subs = [self.create_subscription(
-            topic.msg_type, name, lambda msg, key=key, read=read: self._on_input(key, read, msg),
-            topic.qos) for topic, name, key, read in inputs]
+            topic.msg_type, name, lambda msg, key=key: self._on_input(key, msg), topic.qos)
+            for topic, name, key, _ in inputs]
         self.get_logger().info(f'wrench QP up: object {mass:g} kg, {list(size)} m')
 
     @property
@@ -94,20 +94,18 @@ class WrenchQPNode(Node):
         elif name == 'object_size':
             self.step.change_object(size=value)
 
-    def _on_input(self, key, read, msg):
-        try:
-            self._latest[key] = read(msg)
-        except InputError as error:
-            self.refusals.refuse(key, str(error))
+    def _on_input(self, key, msg):
+        self._inputs[key].offer(msg)
         for t_ns in self._barrier.arrived(stamp_ns(msg.header.stamp), key):
             self._tick(t_ns)
 
     def _tick(self, t_ns):
-        phase = self._latest.get('phase')
-        joints = {arm: self._latest[arm].position for arm in contract.ARMS if arm in self._latest}
+        phase = self._inputs['phase'].value()
+        joints = {arm: state.position for arm in contract.ARMS
+                  if (state := self._inputs[arm].value()) is not None}
         wrenches = self.step.tick(t_ns, None if phase is None else phase.phase,
-                                  self._latest.get('desired_twist'), joints,
-                                  self._latest.get('object'))
+                                  self._inputs['desired_twist'].value(), joints,
+                                  self._inputs['object'].value())
         result = self.step.last_result
         if result is not None and not result.feasible:
             self.get_logger().warning(f'wrench QP: {result.status}', throttle_duration_sec=1.0)
@@ -119,7 +117,7 @@ class WrenchQPNode(Node):
     def _report(self):
         values = dict(self.step.counters, dropped_stamps=self._barrier.dropped)
         values.update({f'refused_{reason}': n for reason, n in self.refusals.counts.items()})
-        phase = self._latest.get('phase')
+        phase = self._inputs['phase'].value()
         values.update({'phase': 'none' if phase is None else phase.phase.value,
                        'object_mass': self.step.object_mass})
         if self.refusals.total or self.step.counters['infeasible_ticks']:

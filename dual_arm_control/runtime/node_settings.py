@@ -81,8 +81,9 @@ NODE_TABLES = {
                 '(empty = none)', read_only=True),
         Setting('publish_ground_truth', True, 'publish /ground_truth/* topics (evaluation '
                 'only, costs CPU)'),
-        Setting('ground_truth_period', 0.0, 'sim time between ground-truth messages; 0 = every '
-                'FRI cycle', 's', 0.0, 1.0),
+        Setting('ground_truth_period', 0.01, 'sim time between ground-truth messages (for '
+                'viewers and bags; the trajectory log has every cycle); 0 = every FRI cycle', 's',
+                0.0, 1.0),
         Setting('object_displacement', (0.0, 0.0, 0.0), 'displacement [x, y, z] of the object '
                 'in the world applied by the /sim/move_object service', 'm',
                 -MAX_OBJECT_DISPLACEMENT, MAX_OBJECT_DISPLACEMENT),
@@ -91,16 +92,21 @@ NODE_TABLES = {
         Setting('lockstep_wait_for_tracker', False, 'lockstep: publish the mocap samples of a '
                 'cycle first and the rest of the state only after the object tracker answered '
                 'each of them', read_only=True),
-        Setting('lockstep_wait_for_subscribers', False, 'lockstep: publish the first state '
-                'only once every topic the bridge publishes has a subscriber', read_only=True),
-        Setting('lockstep_wait_for_recorder', False, 'lockstep: publish the first state only '
+        Setting('wait_for_subscribers', False, 'publish the first state only once every topic '
+                'the bridge publishes has a subscriber', read_only=True),
+        Setting('wait_for_recorder', False, 'publish the first state only '
                 'once bag_record reports that it matched every publisher of its topics the '
                 'bridge sees, so a recording loses nothing', read_only=True),
-        Setting('lockstep_wait_for_nodes', ('',), 'lockstep: publish the first state only once '
+        Setting('wait_for_nodes', ('',), 'publish the first state (and in realtime start the '
+                'clock) only once '
                 'these nodes (full names, e.g. /ds_motion_generator) and their publishers are in '
                 "the graph, plus a settling second ('' entries are ignored)", read_only=True),
         DIAGNOSTICS_PERIOD)),
-    'object_tracker': NodeTable((DIAGNOSTICS_PERIOD,), TrackerConfig),
+    'object_tracker': NodeTable((
+        Setting('lockstep', False, 'also answer every /clock cycle with the estimate at the '
+                'cycle (or that there is none yet), which the lockstep DS and wrench QP wait for; '
+                'false: answer the mocap samples only (realtime)', read_only=True),
+        DIAGNOSTICS_PERIOD), TrackerConfig),
     'ds_motion_generator': NodeTable((
         SCENARIO,
         Setting('auto_start_time', 0.0, 'sim time at which an episode starts by itself (after '

@@ -108,10 +108,15 @@ class TrackerStep:
         return _state(pose.stamp_ns, self._tracker.state(t))
 
     def at(self, stamp_ns):
-        """Return the ObjectState at a cycle stamp (no estimate before the first sample)."""
+        """
+        Return the ObjectState at a cycle stamp (no estimate before the first sample).
+
+        The mean only (no covariances): it is asked for every FRI cycle.
+        """
         if self._last_stamp_ns is None or stamp_ns < self._last_stamp_ns:
             return no_object_state(stamp_ns)
-        return _state(stamp_ns, self._tracker.state(stamp_ns / NANOSECONDS_PER_SECOND))
+        mean = self._tracker.mean_state(stamp_ns / NANOSECONDS_PER_SECOND)
+        return ObjectState(stamp_ns, True, *mean)
 
     def tracking(self):
         """Return True while a track runs and is not lost."""
