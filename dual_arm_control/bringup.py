@@ -27,6 +27,7 @@ from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.executables import EXECUTABLES
 from dual_arm_control.graph import GRAPHS, run_parameters
 from dual_arm_control.nodes.ds_motion_generator import PHASE_LOG_PREFIX
+from dual_arm_control.nodes.process import REALTIME_PRIORITY_VARIABLE
 from dual_arm_control.parameter_files import key_applies, parameter_file_problems
 from dual_arm_control.resources import config_path, load_yaml
 from dual_arm_control.scenario import load_scenario, scenario_path
@@ -98,8 +99,10 @@ def ros_value(value):
 class Launcher:
     """Own the child processes of one graph run and stop them cleanly."""
 
-    def __init__(self, nodes, out_dir, domain_id, extra_param_file=None, node_parameters=None):
+    def __init__(self, nodes, out_dir, domain_id, extra_param_file=None, node_parameters=None,
+                 realtime=False):
         self._nodes = nodes
+        self._realtime = realtime
         self._log_dir = Path(out_dir) / 'logs'
         self._domain_id = domain_id
         self._extra_param_file = extra_param_file
@@ -126,9 +129,12 @@ class Launcher:
         for spec in self._nodes:
             log_file = open(self._log_dir / f'{spec.label}.log', 'w')
             self._log_files.append(log_file)
+            node_env = env
+            if self._realtime and spec.realtime_priority:
+                node_env = dict(env, **{REALTIME_PRIORITY_VARIABLE: str(spec.realtime_priority)})
             self._processes[spec.label] = subprocess.Popen(
                 self.command(spec), stdout=log_file, stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL, env=env, preexec_fn=_die_with_parent)
+                stdin=subprocess.DEVNULL, env=node_env, preexec_fn=_die_with_parent)
 
     def command(self, spec):
         """Return the argv of one node: table values, this run's values, the user's file."""
@@ -300,7 +306,7 @@ def run(args, domain):
     trajectory_log = (args.out / 'trajectory.npz').resolve() if args.scenario else None
     launcher = Launcher(GRAPHS[args.graph](), args.out, domain, args.params,
                         run_parameters(args.graph, args.scenario, args.mode, trajectory_log,
-                                       args.record))
+                                       args.record), realtime=args.mode == 'realtime')
 
     def request_stop(signum, frame):
         launcher.stop_requested = True

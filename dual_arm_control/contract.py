@@ -61,6 +61,19 @@ class Topic:
                           depth=max(self.qos.depth, PUBLISHER_HISTORY_DEPTH),
                           reliability=ReliabilityPolicy.RELIABLE, durability=self.qos.durability)
 
+    def subscription_qos(self, lockstep):
+        """
+        Return the QoS a node subscribes with in lockstep or in realtime.
+
+        The topic's in lockstep (every stamp matters); depth 1 in realtime, where only the
+        newest message matters (take-latest), so a node that fell behind answers the present,
+        not a backlog.
+        """
+        if lockstep:
+            return self.qos
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                          reliability=self.qos.reliability, durability=self.qos.durability)
+
     def resolved(self, arm=None):
         """Return the absolute topic name, for the given arm if the topic is per arm."""
         if self.per_arm:

@@ -13,13 +13,20 @@ from dual_arm_control.contract import ARMS
 
 @dataclass(frozen=True)
 class NodeSpec:
-    """One process of the graph: executable, node name, namespace, parameters, param files."""
+    """
+    One process of the graph: executable, node name, namespace, parameters, param files.
+
+    realtime_priority: the SCHED_FIFO priority of the process in realtime mode (0: normal). The
+    robot side (bridge) and the torque controllers, whose answers have a 2 ms deadline, come
+    first; the 200 Hz roles next.
+    """
 
     executable: str
     name: str
     namespace: str = ''
     parameters: dict = field(default_factory=dict)
     param_files: tuple = ()
+    realtime_priority: int = 0
 
     @property
     def full_name(self):
@@ -32,29 +39,39 @@ class NodeSpec:
         return f'{self.namespace.strip("/")}_{self.name}' if self.namespace else self.name
 
 
+# SCHED_FIFO priorities in realtime mode: the FRI side, the 500 Hz controllers, the 200 Hz roles.
+ROBOT_PRIORITY, CONTROLLER_PRIORITY, PLANNER_PRIORITY = 40, 35, 20
+
+
 def full_graph():
     """Return the product graph: bridge, tracker, DS, wrench QP and one controller per arm."""
     sim_time = {'use_sim_time': True}
     nodes = [
         NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',),
-                 parameters={'lockstep_wait_for_tracker': True}),
+                 parameters={'lockstep_wait_for_tracker': True},
+                 realtime_priority=ROBOT_PRIORITY),
         NodeSpec('object_tracker', 'object_tracker', parameters=sim_time,
-                 param_files=('object_tracker.yaml',)),
-        NodeSpec('ds_motion_generator', 'ds_motion_generator', parameters=sim_time),
-        NodeSpec('wrench_qp', 'wrench_qp', parameters=sim_time, param_files=('wrench_qp.yaml',)),
+                 param_files=('object_tracker.yaml',), realtime_priority=PLANNER_PRIORITY),
+        NodeSpec('ds_motion_generator', 'ds_motion_generator', parameters=sim_time,
+                 realtime_priority=PLANNER_PRIORITY),
+        NodeSpec('wrench_qp', 'wrench_qp', parameters=sim_time, param_files=('wrench_qp.yaml',),
+                 realtime_priority=PLANNER_PRIORITY),
     ]
     for arm in ARMS:
         nodes.append(NodeSpec('passive_controller', 'passive_controller', f'/{arm}',
-                              dict(sim_time, arm=arm), ('passive_controller.yaml',)))
+                              dict(sim_time, arm=arm), ('passive_controller.yaml',),
+                              realtime_priority=CONTROLLER_PRIORITY))
     return tuple(nodes)
 
 
 def hold_graph():
     """Return the twin with one gravity-compensation test controller per arm."""
-    nodes = [NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',))]
+    nodes = [NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',),
+                      realtime_priority=ROBOT_PRIORITY)]
     for arm in ARMS:
         nodes.append(NodeSpec('gravity_comp_controller', 'controller', f'/{arm}',
-                              {'arm': arm, 'mode': 'gravity'}))
+                              {'arm': arm, 'mode': 'gravity'},
+                              realtime_priority=CONTROLLER_PRIORITY))
     return tuple(nodes)
 
 

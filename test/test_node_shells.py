@@ -570,7 +570,8 @@ def motion_generator(harness_factory):
     harness = harness_factory(lambda context: DsMotionGenerator(
         context=context, parameter_overrides=[
             Parameter('scenario', value=str(scenario_path('paper_toss'))),
-            Parameter('auto_start_time', value=AUTO_START_TIME)]))
+            Parameter('auto_start_time', value=AUTO_START_TIME),
+            Parameter('lockstep', value=True)]))
     for arm in contract.ARMS:
         harness.publisher(contract.JOINT_STATES, arm)
         harness.publisher(contract.FT_WRENCH, arm)

@@ -4,9 +4,11 @@ ds_motion_generator: phases, coordinated modulated DS, orientation and object DS
 Feeds every FRI cycle's joint states and FT readings of both arms and the newest object estimate
 to the runtime MotionGeneratorStep; on DS ticks (200 Hz on the cycle stamps) it publishes,
 stamped with the tick, per-arm DS commands, the desired object twist, the phase and (every
-MARKER_PERIOD) markers. With `lockstep` a tick waits for the tracker's estimate stamped with the
-tick. Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start time
-and rates. Services start an episode, send the arms home and reset.
+MARKER_PERIOD) markers. With `lockstep` a cycle waits for all four inputs stamped with it, and a
+tick for the tracker's estimate stamped with it; in realtime each left joint state triggers a
+cycle with the newest of the others (take-latest). Parameters: the whole
+MotionGeneratorConfig tree (live), plus the scenario, auto-start time and rates. Services start
+an episode, send the arms home and reset.
 """
 
 import sys
@@ -36,6 +38,7 @@ MARKER_PERIOD = 0.05
 # Start of the log line of a phase change (the launcher echoes these as progress).
 PHASE_LOG_PREFIX = 'phase at '
 CYCLE_INPUTS = frozenset(f'{arm}_{kind}' for arm in ARMS for kind in ('joints', 'ft'))
+REALTIME_TRIGGER = frozenset(('left_joints',))
 
 
 class DsMotionGenerator(Node):
@@ -54,10 +57,14 @@ class DsMotionGenerator(Node):
             parameters.config, {arm: arm_model(arm, cell) for arm in ARMS},
             settings['ds_period'], seconds_to_ns(settings['auto_start_time']),
             refusal_logger(self.get_logger()))
+        # Lockstep: a cycle waits for all its inputs (and, on ticks, the estimate stamped with
+        # it). Realtime: take-latest, the left joint state triggers the cycle.
         lockstep = settings['lockstep']
-        self._barrier = ArrivalBarrier(
-            lambda t: CYCLE_INPUTS | ({'object'} if lockstep and self.step.is_new_tick(t)
-                                      else set()))
+        if lockstep:
+            self._barrier = ArrivalBarrier(
+                lambda t: CYCLE_INPUTS | ({'object'} if self.step.is_new_tick(t) else set()))
+        else:
+            self._barrier = ArrivalBarrier(lambda t: REALTIME_TRIGGER)
         refuse = self.step.refusals.refuse
         self._inputs = {'object': LatestMessage(object_state_of, 'object', refuse)}
         for arm in ARMS:
@@ -79,13 +86,14 @@ class DsMotionGenerator(Node):
             self.create_subscription(
                 contract.JOINT_STATES.msg_type, contract.JOINT_STATES.resolved(arm),
                 lambda msg, arm=arm: self._on_input(f'{arm}_joints', msg),
-                contract.JOINT_STATES.qos)
+                contract.JOINT_STATES.subscription_qos(lockstep))
             self.create_subscription(
                 contract.FT_WRENCH.msg_type, contract.FT_WRENCH.resolved(arm),
-                lambda msg, arm=arm: self._on_input(f'{arm}_ft', msg), contract.FT_WRENCH.qos)
+                lambda msg, arm=arm: self._on_input(f'{arm}_ft', msg),
+                contract.FT_WRENCH.subscription_qos(lockstep))
         self.create_subscription(contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
                                  lambda msg: self._on_input('object', msg),
-                                 contract.OBJECT_STATE.qos)
+                                 contract.OBJECT_STATE.subscription_qos(lockstep))
         for service, command in ((contract.START_EPISODE_SERVICE, 'start'),
                                  (contract.GO_HOME_SERVICE, 'go_home'),
                                  (contract.RESET_EPISODE_SERVICE, 'reset')):

@@ -40,7 +40,7 @@ class ObjectTrackerNode(Node):
         self._state_pub = create_topic_publisher(self, contract.OBJECT_STATE)
         self._mocap_sub = self.create_subscription(
             contract.MOCAP_OBJECT_POSE.msg_type, contract.MOCAP_OBJECT_POSE.name, self._on_mocap,
-            contract.MOCAP_OBJECT_POSE.qos)
+            contract.MOCAP_OBJECT_POSE.subscription_qos(settings['lockstep']))
         if settings['lockstep']:
             self.create_subscription(contract.CLOCK.msg_type, contract.CLOCK.name,
                                      self._on_clock, contract.CLOCK.qos)

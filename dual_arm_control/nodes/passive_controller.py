@@ -54,12 +54,14 @@ class PassiveControllerNode(Node):
         self._torque_msg = contract.TORQUE_COMMAND.msg_type()
         self._torque_msg.name = self._joint_names
         self.create_subscription(contract.DS_COMMAND.msg_type, contract.DS_COMMAND.name,
-                                 self._on_ds_command, contract.DS_COMMAND.qos)
+                                 self._on_ds_command,
+                                 contract.DS_COMMAND.subscription_qos(self.lockstep))
         self.create_subscription(contract.CONTACT_WRENCH.msg_type, contract.CONTACT_WRENCH.name,
-                                 self._on_contact_wrench, contract.CONTACT_WRENCH.qos)
+                                 self._on_contact_wrench,
+                                 contract.CONTACT_WRENCH.subscription_qos(self.lockstep))
         self._joint_state_sub = self.create_subscription(
             contract.JOINT_STATES.msg_type, contract.JOINT_STATES.name, self._on_joint_state,
-            contract.JOINT_STATES.qos)
+            contract.JOINT_STATES.subscription_qos(self.lockstep))
         if self.get_namespace() != f'/{self.arm}':
             self.get_logger().warning(f'arm {self.arm} runs in namespace '
                                       f'{self.get_namespace()}, expected /{self.arm}')

@@ -7,6 +7,7 @@ prints how many messages it published per topic (the bag tests compare them with
 """
 
 import json
+import os
 import signal
 import time
 
@@ -22,6 +23,9 @@ from rclpy.signals import SignalHandlerOptions
 FLUSH_TIMEOUT = 2.0
 # The line a stopping node prints with {topic: messages published} (read by the bag tests).
 PUBLISHED_COUNTS_PREFIX = 'published counts: '
+# Environment variable with the SCHED_FIFO priority (1-99) a node's process runs at; the
+# launcher sets it per node in realtime mode (the robot side and the controllers highest).
+REALTIME_PRIORITY_VARIABLE = 'DUAL_ARM_REALTIME_PRIORITY'
 
 
 class CountingPublisher(Publisher):
@@ -96,6 +100,22 @@ class StopRequest:
             signal.signal(signum, handler)
 
 
+def use_realtime_priority(priority):
+    """
+    Run this process at SCHED_FIFO `priority` (a string 1-99, or None: leave it); return a note.
+
+    Called before rclpy starts its threads, which inherit the policy. Where the OS refuses (no
+    CAP_SYS_NICE) the process keeps its normal priority and the note says so.
+    """
+    if not priority:
+        return ''
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
+    except (ValueError, OSError) as error:
+        return f'real-time priority {priority} refused ({error}); running at normal priority'
+    return f'running at real-time priority {priority} (SCHED_FIFO)'
+
+
 def run_node(node_factory, name, args=None, drain=False, on_exit=None):
     """
     Run one node until Ctrl-C or SIGTERM, the Jazzy way; return the process exit code.
@@ -108,7 +128,10 @@ def run_node(node_factory, name, args=None, drain=False, on_exit=None):
     counts and is destroyed. on_exit(node), if given, runs before that and returns the exit
     code (0 otherwise).
     """
+    priority_note = use_realtime_priority(os.environ.get(REALTIME_PRIORITY_VARIABLE))
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    if priority_note:
+        rclpy.logging.get_logger(name).info(priority_note)
     stop = StopRequest()
     try:
         node = node_factory()

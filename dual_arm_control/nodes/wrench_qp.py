@@ -1,8 +1,9 @@
 """
 wrench_qp: the contact wrench of each pad, once per DS tick (runtime WrenchStep, eq. 10).
 
-A tick t is computed once /object/desired_twist(t), /dual_arm/phase(t) and both arms' joint
-states (t) arrived (with `lockstep`, also the tracker's /object/state(t)); it publishes
+With `lockstep` a tick t is computed once /object/desired_twist(t), /dual_arm/phase(t), both
+arms' joint states (t) and the tracker's /object/state(t) arrived; in realtime each phase
+message triggers its tick with the newest of the other inputs (take-latest). It publishes
 /<arm>/contact_wrench (WrenchStamped, frame world, force the pad applies on the object, moment
 about the tool point) stamped t. Malformed inputs are refused and counted; a refused input still
 counts as arrived and the newest valid one is used. Parameters: the WrenchDistributorConfig
@@ -57,7 +58,9 @@ class WrenchQPNode(Node):
         self.step = WrenchStep(parameters.config, mass, size,
                                {arm: arm_model(arm, cell) for arm in contract.ARMS})
         self.refusals = RefusalCounter(refusal_logger(self.get_logger()))
-        required = TICK_INPUTS | ({'object'} if lockstep else set())
+        # Lockstep: a tick waits for every input stamped with it. Realtime: take-latest, the
+        # phase of a DS tick triggers it.
+        required = TICK_INPUTS | {'object'} if lockstep else {'phase'}
         self._barrier = ArrivalBarrier(lambda stamp: required)
         self._wrench_pubs = {arm: create_topic_publisher(self, contract.CONTACT_WRENCH, arm)
                              for arm in contract.ARMS}
@@ -74,7 +77,8 @@ class WrenchQPNode(Node):
         self._inputs = {key: LatestMessage(read, key, self.refusals.refuse)
                         for _, _, key, read in inputs}
         self._input_subs = [self.create_subscription(
-            topic.msg_type, name, lambda msg, key=key: self._on_input(key, msg), topic.qos)
+            topic.msg_type, name, lambda msg, key=key: self._on_input(key, msg),
+            topic.subscription_qos(lockstep))
             for topic, name, key, _ in inputs]
         self.get_logger().info(f'wrench QP up: object {mass:g} kg, {list(size)} m')
 
