@@ -10,7 +10,9 @@ hold policy). Two modes:
   when every arm answered with a command stamped t_k (a refused command counts as the answer:
   that arm holds). Until then the state is republished every `lockstep_republish_period` wall
   seconds (discovery, lost messages). With lockstep_wait_for_tracker the cycle's mocap samples go
-  out first and the rest only after the tracker answered each. Deterministic.
+  out first and the rest only after the tracker answered each. Deterministic. With
+  lockstep_answer_timeout a cycle goes on without an arm that has not answered within that wall
+  time (FriCycle's policy for a missed deadline), so a dead controller cannot stall the twin.
 - realtime: a wall-clock timer paces the cycles like a real robot; at each deadline the twin
   advances with whatever arrived (FriCycle's hold policy for the rest); late cycles are counted.
 
@@ -39,7 +41,7 @@ from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import NodeParameters
 from dual_arm_control.runtime.fri import FriCycle, REFUSAL_REASONS
 from dual_arm_control.runtime.node_settings import node_table
-from dual_arm_control.runtime.timing import seconds_to_ns
+from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import load_scenario
 import numpy as np
 import rclpy
@@ -79,6 +81,9 @@ class SimBridge(Node):
         self._duration = settings['duration']
         self._trajectory_log = settings['trajectory_log']
         self._republish_period = settings['lockstep_republish_period']
+        self._answer_timeout = settings['lockstep_answer_timeout']
+        self._ft_schedule = TickSchedule(settings['ft_period']) if settings['ft_period'] else None
+        self._ft_due = True
         self._wait_for_tracker = lockstep and settings['lockstep_wait_for_tracker']
         self._diagnostics_period_ns = seconds_to_ns(settings['diagnostics_period'])
         self._ground_truth_period_ns = seconds_to_ns(settings['ground_truth_period'])
@@ -208,8 +213,15 @@ class SimBridge(Node):
                                             clock=self._steady)
 
     def _on_republish_timer(self):
-        """Lockstep: publish the awaited state again when its answers are overdue."""
+        """Lockstep: go on past the answer deadline, or publish the awaited state again."""
         now = time.monotonic()
+        if (self._answer_timeout > 0.0 and not self._awaited_tracker_ns
+                and now - self._state_published_wall >= self._answer_timeout):
+            self._warn_throttled(('lockstep', 'deadline'), (
+                f'lockstep: no torque command from {self.fri.missing()} within '
+                f'{self._answer_timeout:g} s: the cycle goes on, those arms hold'))
+            self._advance()
+            return
         if now - self._last_publish_wall < self._republish_period:
             return
         if self._awaited_tracker_ns:
@@ -260,6 +272,10 @@ class SimBridge(Node):
     def _publish_state(self):
         """Publish the cycle's mocap samples, then (tracker permitting) the rest of its state."""
         self._cycle = self.fri.begin()
+        schedule = self._ft_schedule
+        self._ft_due = schedule is None or schedule.due(self._cycle.stamp_ns)
+        if schedule is not None and self._ft_due:
+            schedule.take(self._cycle.stamp_ns)
         self._state_published_wall = time.monotonic()
         self._publish_mocap()
         if self._wait_for_tracker and self._cycle.mocap:
@@ -295,6 +311,8 @@ class SimBridge(Node):
         self._last_publish_wall = time.monotonic()
 
     def _publish_ft(self):
+        if not self._ft_due:
+            return
         for arm in contract.ARMS:
             fill_wrench(self._ft[arm].msg, self._cycle.ft_wrenches[arm])
             self._ft[arm].publish()

@@ -3,7 +3,8 @@ gravity_comp_controller: a test controller for one arm (stand-in for the passive
 
 Answers every joint state with a torque command stamped like the state, as the bridge's lockstep
 mode expects: mode 'gravity' commands the gravity torque of the arm's pinocchio model minus joint
-damping times velocity; mode 'zero' commands zero torque (the arm falls). Run one instance per arm
+damping times velocity; mode 'zero' commands zero torque (the arm falls). States stamped within
+`mute_window` are not answered (a stalled controller, for fault tests). Run one instance per arm
 in the arm's namespace: `--ros-args -r __ns:=/left -p arm:=left`. Triggered by the incoming state,
 no timers.
 """
@@ -13,7 +14,7 @@ import sys
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.description.cell import arm_model
-from dual_arm_control.nodes.messages import joint_state_of
+from dual_arm_control.nodes.messages import joint_state_of, stamp_ns
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import NodeParameters
 from dual_arm_control.runtime.node_settings import node_table
@@ -38,6 +39,7 @@ class GravityCompController(Node):
                                   on_change=self._on_setting)
         self.arm, self.mode, self.joint_damping = (settings[name] for name in (
             'arm', 'mode', 'joint_damping'))
+        self._mute_ns = [int(round(v * 1e9)) for v in settings['mute_window']]
         self._model = arm_model(self.arm)
         self._joint_names = contract.joint_names(self.arm)
         self._command_pub = create_topic_publisher(self, contract.TORQUE_COMMAND)
@@ -58,6 +60,8 @@ class GravityCompController(Node):
 
     def _on_joint_state(self, msg):
         """Answer the state with a torque command carrying the state's stamp."""
+        if self._mute_ns[0] <= stamp_ns(msg.header.stamp) < self._mute_ns[1]:
+            return
         try:
             state = joint_state_of(msg, self._joint_names)
         except InputError as error:

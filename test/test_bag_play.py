@@ -28,6 +28,7 @@ from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, offered_qo
 from dual_arm_control.graph import full_graph, run_parameters
 from dual_arm_control.nodes.bag_play import main as bag_play_main, split_arguments
 from dual_arm_control.nodes.messages import stamp_ns
+from dual_arm_control.runtime.timing import TickSchedule
 from graph_helpers import (GraphProbe, parameter_arguments, ProcessGroup, record_episode,
                            ros_environment)
 import pytest
@@ -383,14 +384,23 @@ def missing_inputs(bag):
     """
     Return what the bag lacks of the motion generator's inputs ('' if nothing).
 
-    Every FRI cycle of the run needs /clock, both arms' joint states and FT readings and the
-    tracker's per-cycle /object/state, each stamped with the cycle, from sim time 0 on.
+    Every FRI cycle of the run needs /clock, both arms' joint states and the tracker's
+    per-cycle /object/state, and every DS tick both arms' FT readings, each stamped with the
+    cycle, from sim time 0 on.
     """
     stamps = {topic: set() for topic in DS_INPUTS}
     for message in BagReader(bag).messages(list(DS_INPUTS)):
         stamps[message.topic].add(header_stamp_ns(message.data))
     cycles = set(range(0, max(stamps['/clock'], default=-1) + 1, FRI_PERIOD_NS))
-    lacking = {topic: len(cycles - found) for topic, found in stamps.items() if cycles - found}
+    schedule = TickSchedule(0.005)
+    ticks = set()
+    for stamp in sorted(cycles):
+        if schedule.due(stamp):
+            schedule.take(stamp)
+            ticks.add(stamp)
+    needed = {topic: ticks if topic.endswith('ft_wrench') else cycles for topic in stamps}
+    lacking = {topic: len(needed[topic] - found) for topic, found in stamps.items()
+               if needed[topic] - found}
     return f'{len(cycles)} cycles; cycles missing per topic: {lacking}' if lacking else ''
 
 

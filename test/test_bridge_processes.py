@@ -9,7 +9,7 @@ import math
 import signal
 
 from dual_arm_control import contract
-from dual_arm_control.description.cell import arm_model
+from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.scenario import load_scenario
 from graph_helpers import GraphProbe, ProcessGroup
@@ -29,12 +29,14 @@ def tool_drift(data, arm, rows=slice(None)):
     return float(np.max(np.linalg.norm(positions[rows] - positions[0], axis=1)))
 
 
-def run_lockstep(tmp_path, ros_domain, name, duration, controller_modes, **bridge_parameters):
+def run_lockstep(tmp_path, ros_domain, name, duration, controller_modes,
+                 controller_parameters=None, **bridge_parameters):
     """Run the bridge in lockstep with one controller process per arm; return the log."""
     log_path = tmp_path / f'{name}.npz'
+    controller_parameters = controller_parameters or {}
     with ProcessGroup(tmp_path, ros_domain) as graph:
         for arm, mode in controller_modes.items():
-            graph.start_controller(arm, mode=mode)
+            graph.start_controller(arm, mode=mode, **controller_parameters.get(arm, {}))
         graph.start_bridge(duration=duration, trajectory_log=str(log_path), **bridge_parameters)
         exit_code = graph.wait('sim_bridge', BRIDGE_TIMEOUT)
         assert exit_code == 0, graph.log('sim_bridge')
@@ -59,6 +61,38 @@ def test_zero_torque_lets_both_arms_fall(tmp_path, ros_domain):
     for arm in contract.ARMS:
         height = data[f'{arm}_tool_position'][:, 2]
         assert height[0] - height.min() > 0.05, arm
+
+
+def test_a_controller_past_its_deadline_gets_its_last_torque_once_then_the_hold(
+        tmp_path, ros_domain):
+    """
+    The FRI deadline policy, deterministic in lockstep.
+
+    The right controller (zero torque: the arm falls) stalls for ten cycles (0.100-0.118 s);
+    the bridge waits 0.3 s wall for each, then applies the arm's previous torque (zero) for the
+    first missed cycle and the robot's hold (gravity compensation and hold damping) for the
+    others; then its zero torque again.
+    """
+    data = run_lockstep(tmp_path, ros_domain, 'stall', 0.2,
+                        {'left': 'gravity', 'right': 'zero'}, lockstep_answer_timeout=0.3,
+                        controller_parameters={'right': {'mute_window': [0.1, 0.1195]}})
+    rows = {round(t * 1e3): row for row, t in enumerate(data['t'])}
+    tau, q, dq = (data[f'right_{name}'] for name in ('tau', 'q', 'dq'))
+    model = arm_model('right')
+    hold_damping = np.array(load_cell().arm('right').hold_damping)
+    # Row k + 1 holds the torque applied during the cycle that starts at row k.
+    first_missed = rows[100]
+    np.testing.assert_array_equal(tau[first_missed], np.zeros(7))
+    np.testing.assert_array_equal(tau[first_missed + 1], np.zeros(7))
+    assert np.abs(dq[first_missed]).max() > 0.05, 'the arm is falling'
+    for row in range(first_missed + 1, rows[118] + 1):
+        hold = model.gravity_torque(q[row]) - hold_damping * dq[row]
+        np.testing.assert_allclose(tau[row + 1], hold, atol=1e-5)
+        assert np.abs(tau[row + 1]).max() > 5.0, row
+    np.testing.assert_array_equal(tau[rows[120] + 1], np.zeros(7))
+    assert int(data['right_previous_torque_repeats']) == 1
+    assert int(data['right_watchdog_holds']) == 9
+    assert int(data['left_watchdog_holds']) == int(data['left_previous_torque_repeats']) == 0
 
 
 def test_lockstep_runs_are_bit_identical(tmp_path, ros_domain):

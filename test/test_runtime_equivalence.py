@@ -3,11 +3,13 @@ The node graph and the in-process runner are the same episode.
 
 Both are built from the same runtime steps, and the messages between the processes carry the
 signals' float64 values unchanged, so a lockstep graph run (`dual_arm_bringup --record`, one
-process per node) and an in-process run of the same scenario and seed must agree bit for bit:
-the ground-truth trajectory is compared with array_equal, every numeric field of the metrics
-within 1e-9 (the issue's bound; in practice they are equal), and the phase of every DS tick
-(from /dual_arm/phase in the bag) is the same. With test_inprocess's bit-identical reruns this
-also makes the lockstep graph deterministic.
+process per node) and an in-process run of the same scenario and seed compute the same numbers:
+the ground-truth trajectory and every numeric field of the metrics agree within 1e-9, and the
+phase of every DS tick (from /dual_arm/phase in the bag) is the same. Usually they are equal to
+the last bit; across processes they need not be, because the vectorised reductions of Eigen
+(pinocchio, proxsuite) and BLAS may sum in an order that depends on a buffer's memory alignment
+(seen: 6e-15 m after 4 s). With test_inprocess's bit-identical reruns in one process this also
+makes the lockstep graph deterministic.
 """
 
 import json
@@ -34,7 +36,7 @@ SCENARIOS = SOURCE_ROOT / 'config' / 'scenarios'
 EPISODE_TIMEOUT = 240
 TRAJECTORY_FIELDS = ['t', *OBJECT_FIELDS, *(f'{arm}_{name}' for arm in contract.ARMS
                                             for name in ARM_FIELDS)]
-METRIC_TOLERANCE = 1e-9
+TOLERANCE = 1e-9
 
 
 @pytest.fixture(scope='module')
@@ -70,9 +72,10 @@ def assert_same_episode(scenario, graph_dir, duration, cell):
     inprocess = run_episode(scenario, cell=cell, duration=duration)
     graph = load_trajectory(graph_dir / 'trajectory.npz')
     for name in TRAJECTORY_FIELDS:
-        assert np.array_equal(graph[name], inprocess.trajectory[name]), (
-            f'{name} differs: max |difference| '
-            f'{np.max(np.abs(graph[name].astype(float) - inprocess.trajectory[name])):.3g}')
+        assert graph[name].shape == inprocess.trajectory[name].shape, name
+        difference = np.abs(graph[name].astype(float) - inprocess.trajectory[name])
+        assert difference.max(initial=0.0) <= TOLERANCE, (
+            f'{name} differs by up to {difference.max():.3g}')
     graph_metrics = json.loads((graph_dir / 'metrics.json').read_text())
     inprocess_metrics = json.loads(json.dumps(episode_metrics(scenario, inprocess.trajectory,
                                                               cell)))
@@ -80,8 +83,7 @@ def assert_same_episode(scenario, graph_dir, duration, cell):
     inprocess_numbers = numeric_fields(inprocess_metrics)
     assert graph_numbers.keys() == inprocess_numbers.keys()
     for key, value in graph_numbers.items():
-        assert math.isclose(value, inprocess_numbers[key], rel_tol=0.0,
-                            abs_tol=METRIC_TOLERANCE), key
+        assert math.isclose(value, inprocess_numbers[key], rel_tol=0.0, abs_tol=TOLERANCE), key
     assert graph_metrics['success'] == inprocess_metrics['success']
     phases = bag_phases(graph_dir / 'bag.mcap')
     assert len(phases) > 0.9 * duration / 0.005

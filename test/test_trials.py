@@ -242,6 +242,26 @@ def test_bad_scenario_is_one_line_and_exit_2(tmp_path, capsys):
     assert not (tmp_path / 'o').exists()
 
 
+def same_within(first, second, tolerance):
+    """
+    Return True if two metrics dicts agree: numbers within tolerance, the rest equal.
+
+    Across processes the last bits may differ (alignment-dependent vectorised reductions in
+    Eigen and BLAS), never more than that.
+    """
+    if isinstance(first, dict) and isinstance(second, dict):
+        return first.keys() == second.keys() and all(
+            same_within(first[key], second[key], tolerance) for key in first)
+    if isinstance(first, list) and isinstance(second, list):
+        return len(first) == len(second) and all(
+            same_within(a, b, tolerance) for a, b in zip(first, second))
+    if isinstance(first, float) or isinstance(second, float):
+        return (isinstance(first, (int, float)) and isinstance(second, (int, float))
+                and not isinstance(first, bool) and not isinstance(second, bool)
+                and abs(first - second) <= tolerance)
+    return first == second
+
+
 def run_eval(*arguments, timeout=180):
     result = subprocess.run([str(EVAL), *map(str, arguments)], capture_output=True, text=True,
                             timeout=timeout, env=dict(os.environ))
@@ -275,8 +295,9 @@ def test_two_inprocess_trials_in_parallel(tmp_path, cell):
     metrics = json.loads((out / 'trial_000' / 'metrics.json').read_text())
     assert set(METRIC_KEYS) <= set(metrics)
     trial = sample_trial(base, 0, cell)
-    rerun = episode_metrics(trial, run_episode(trial, cell=cell).trajectory, cell)
-    assert json.loads(json.dumps(rerun)) == metrics, 'the batch is reproducible from its seed'
+    rerun = json.loads(json.dumps(episode_metrics(trial, run_episode(trial, cell=cell).trajectory,
+                                                  cell)))
+    assert same_within(rerun, metrics, 1e-9), 'the batch is reproducible from its seed'
     for name in ('landing_error.png', 'impact_speeds.png', 'release_errors.png', 'grasp.png',
                  'landing_positions.png', 'sensitivity.png'):
         assert (out / name).stat().st_size > 5_000, name

@@ -16,6 +16,7 @@ update rate.
 from dataclasses import dataclass
 
 from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.geometry import cross3
 from dual_arm_control.core.validation import check_range, check_vector, finite_array
 import numpy as np
 
@@ -225,7 +226,7 @@ def tool_weight_reading(R_world_sensor, config):
     """
     R_world_sensor = finite_array('R_world_sensor', R_world_sensor, (3, 3))
     force = -config.tool_mass * (R_world_sensor.T @ np.asarray(config.gravity_world))
-    torque = np.cross(np.asarray(config.p_sensor_tool_com), force)
+    torque = cross3(np.asarray(config.p_sensor_tool_com), force)
     return np.concatenate((force, torque))
 
 

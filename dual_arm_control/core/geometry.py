@@ -4,6 +4,8 @@ Small rotation and frame helpers shared by the DS, tracker and controllers.
 Quaternions are stored as (x, y, z, w), the ROS message order; names carry ``quat_xyzw``.
 """
 
+import math
+
 from dual_arm_control.core.exceptions import InputError
 import numpy as np
 
@@ -15,6 +17,13 @@ def skew(vector):
     """Return the (3, 3) skew-symmetric matrix [v]x such that [v]x @ u = v x u."""
     x, y, z = vector
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def cross3(a, b):
+    """Return a x b (3,) for two 3-vectors (np.cross without its generic-axis overhead)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def unit(vector, name='vector'):
@@ -36,7 +45,7 @@ def orthonormal_basis(first_axis):
     e1 = unit(first_axis, 'first_axis')
     helper_axis = np.eye(3)[int(np.argmin(np.abs(e1)))]
     e2 = unit(helper_axis - e1 * (e1 @ helper_axis))
-    e3 = np.cross(e1, e2)
+    e3 = cross3(e1, e2)
     return np.column_stack((e1, e2, e3))
 
 
@@ -73,20 +82,21 @@ def matrix_to_quat_xyzw(rotation):
 
 def rotation_log(rotation):
     """Return the rotation vector theta * mu (rad) of a rotation matrix (SO(3) logarithm)."""
-    r = np.asarray(rotation, dtype=float)
-    cos_theta = np.clip(0.5 * (np.trace(r) - 1.0), -1.0, 1.0)
-    theta = np.arccos(cos_theta)
-    axis_times_sin = 0.5 * np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = np.asarray(rotation, dtype=float).tolist()
+    cos_theta = min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0)))
+    theta = math.acos(cos_theta)
+    axis_times_sin = np.array([0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)])
     if theta < _SMALL_ANGLE:
         return axis_times_sin
-    if np.pi - theta < 1e-6:
+    if math.pi - theta < 1e-6:
+        r = np.asarray(rotation, dtype=float)
         symmetric = 0.5 * (r + np.eye(3))
         axis = symmetric[:, int(np.argmax(np.diag(symmetric)))]
         axis = unit(axis)
         if axis @ axis_times_sin < 0.0:
             axis = -axis
         return theta * axis
-    return theta / np.sin(theta) * axis_times_sin
+    return theta / math.sin(theta) * axis_times_sin
 
 
 def rotation_exp(rotation_vector):

@@ -10,6 +10,7 @@ At contact the tool frame coincides with the grasp frame.
 from dataclasses import dataclass
 import functools
 
+from dual_arm_control.core.geometry import cross3
 import numpy as np
 
 _FACE_SIGN = {'left': 1.0, 'right': -1.0}
@@ -38,7 +39,7 @@ def _R_object_grasp(arm):
     sign = _FACE_SIGN[arm]
     z_axis = np.array([0.0, -sign, 0.0])
     x_axis = np.array([1.0, 0.0, 0.0])
-    return np.column_stack((x_axis, np.cross(z_axis, x_axis), z_axis))
+    return np.column_stack((x_axis, cross3(z_axis, x_axis), z_axis))
 
 
 def p_object_grasp(arm, size, offset=(0.0, 0.0, 0.0)):

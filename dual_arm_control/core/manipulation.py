@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 from dual_arm_control.core.cooperative import absolute_relative, left_right
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.geometry import unit
+from dual_arm_control.core.geometry import cross3, unit
 from dual_arm_control.core.modulation import (
     activation_distances, activations, modulated_velocity, modulation_bases,
     ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
@@ -192,7 +192,7 @@ def desired_relative_velocity(grasp_points, object_angular_velocity):
     [rad/s], world frame. Zero in pure translation.
     """
     grasp_points = np.asarray(grasp_points, dtype=float)
-    return np.cross(object_angular_velocity, grasp_points[1] - grasp_points[0])
+    return cross3(object_angular_velocity, grasp_points[1] - grasp_points[0])
 
 
 def manipulation_attractor(x, x_object, x_object_desired, grasp_points, kappa,

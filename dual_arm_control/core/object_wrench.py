@@ -15,6 +15,7 @@ term, i.e. what cancels the object's Coriolis and gravity forces.
 import dataclasses
 
 from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.geometry import cross3
 from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
 
@@ -66,7 +67,7 @@ def object_bias_wrench(mass, inertia_world, w_world_object, gravity=9.81):
         raise InputError(f'object mass must be finite and > 0 kg, got {mass!r}')
     w_world_object = np.asarray(w_world_object, dtype=float)
     return np.concatenate(([0.0, 0.0, mass * gravity],
-                           np.cross(w_world_object, inertia_world @ w_world_object)))
+                           cross3(w_world_object, inertia_world @ w_world_object)))
 
 
 def desired_object_wrench(v_world_object, w_world_object, v_world_desired, w_world_desired,

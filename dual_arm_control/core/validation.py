@@ -70,6 +70,8 @@ def finite_array(name, value, shape=None):
     array = np.asarray(value, dtype=float)
     if shape is not None and array.shape != tuple(shape):
         raise InputError(f'{name} must have shape {tuple(shape)}, got {array.shape}')
-    if not np.isfinite(array).all():
+    # A finite sum is the fast proof (NaN and Inf propagate); only an overflowing sum of
+    # finite values needs the element-wise check.
+    if not math.isfinite(array.sum()) and not np.isfinite(array).all():
         raise InputError(f'{name} contains NaN or Inf')
     return array

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import SolverError
+from dual_arm_control.core.geometry import cross3
 from dual_arm_control.core.object_wrench import (box_inertia, desired_object_wrench,
                                                  ObjectWrenchConfig)
 from dual_arm_control.core.phases import Phase
@@ -28,7 +29,7 @@ WRENCH_DECIMALS = 5
 def wrench_about_tool(wrench, p_world_contact, p_world_tool):
     """Return a pad wrench (6,) with its moment moved from the contact point to the tool."""
     force = np.asarray(wrench[:3], dtype=float)
-    moment = np.asarray(wrench[3:], dtype=float) + np.cross(
+    moment = np.asarray(wrench[3:], dtype=float) + cross3(
         np.asarray(p_world_contact) - np.asarray(p_world_tool), force)
     return np.concatenate((force, moment))
 

@@ -43,7 +43,7 @@ import dataclasses
 import math
 
 from dual_arm_control.core.exceptions import ConfigError, InputError, SolverError
-from dual_arm_control.core.geometry import skew
+from dual_arm_control.core.geometry import cross3, skew
 from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
 import proxsuite
@@ -266,7 +266,7 @@ def pad_contact_geometry(arm, p_world_tool, R_world_tool, p_world_object, R_worl
     if np.linalg.norm(x_axis) < 1e-6:
         x_axis = R_world_object[:, 0]
     x_axis = x_axis / np.linalg.norm(x_axis)
-    R_world_pad = np.column_stack((x_axis, np.cross(z_axis, x_axis), z_axis))
+    R_world_pad = np.column_stack((x_axis, cross3(z_axis, x_axis), z_axis))
     return PadContact(p_world_contact=p_world_tool - normal_distance * outward_normal,
                       R_world_pad=R_world_pad, normal_distance=normal_distance)
 

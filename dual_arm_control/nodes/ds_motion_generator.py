@@ -4,11 +4,11 @@ ds_motion_generator: phases, coordinated modulated DS, orientation and object DS
 Feeds every FRI cycle's joint states and FT readings of both arms and the newest object estimate
 to the runtime MotionGeneratorStep; on DS ticks (200 Hz on the cycle stamps) it publishes,
 stamped with the tick, per-arm DS commands, the desired object twist, the phase and (every
-MARKER_PERIOD) markers. With `lockstep` a cycle waits for all four inputs stamped with it, and a
-tick for the tracker's estimate stamped with it; in realtime each left joint state triggers a
-cycle with the newest of the others (take-latest). Parameters: the whole
-MotionGeneratorConfig tree (live), plus the scenario, auto-start time and rates. Services start
-an episode, send the arms home and reset.
+MARKER_PERIOD) markers. With `lockstep` a tick waits for both arms' joint states and F/T readings
+and the tracker's estimate, all stamped with it (other cycles only advance the schedule); in
+realtime each left joint state triggers a cycle with the newest of the others (take-latest).
+Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start time and
+rates. Services start an episode, send the arms home and reset.
 """
 
 import sys
@@ -37,8 +37,9 @@ from std_srvs.srv import Trigger
 MARKER_PERIOD = 0.05
 # Start of the log line of a phase change (the launcher echoes these as progress).
 PHASE_LOG_PREFIX = 'phase at '
-CYCLE_INPUTS = frozenset(f'{arm}_{kind}' for arm in ARMS for kind in ('joints', 'ft'))
-REALTIME_TRIGGER = frozenset(('left_joints',))
+TICK_INPUTS = frozenset(('object', *(f'{arm}_{kind}' for arm in ARMS
+                                     for kind in ('joints', 'ft'))))
+CYCLE_TRIGGER = frozenset(('left_joints',))
 
 
 class DsMotionGenerator(Node):
@@ -62,9 +63,9 @@ class DsMotionGenerator(Node):
         lockstep = settings['lockstep']
         if lockstep:
             self._barrier = ArrivalBarrier(
-                lambda t: CYCLE_INPUTS | ({'object'} if self.step.is_new_tick(t) else set()))
+                lambda t: TICK_INPUTS if self.step.is_new_tick(t) else CYCLE_TRIGGER)
         else:
-            self._barrier = ArrivalBarrier(lambda t: REALTIME_TRIGGER)
+            self._barrier = ArrivalBarrier(lambda t: CYCLE_TRIGGER)
         refuse = self.step.refusals.refuse
         self._inputs = {'object': LatestMessage(object_state_of, 'object', refuse)}
         for arm in ARMS:

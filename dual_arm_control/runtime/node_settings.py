@@ -79,6 +79,9 @@ NODE_TABLES = {
                 'the duration of the scenario', 's', 0.0, MAX_DURATION),
         Setting('trajectory_log', '', 'if set: .npz ground-truth trajectory written on exit '
                 '(empty = none)', read_only=True),
+        Setting('ft_period', DS_PERIOD, 'the F/T readings go out on the first FRI cycle of each '
+                'period (TickSchedule: the DS ticks, the only cycles that use them); 0 = every '
+                'FRI cycle', 's', 0.0, 0.1, read_only=True),
         Setting('publish_ground_truth', True, 'publish /ground_truth/* topics (evaluation '
                 'only, costs CPU)'),
         Setting('ground_truth_period', 0.01, 'sim time between ground-truth messages (for '
@@ -89,6 +92,10 @@ NODE_TABLES = {
                 -MAX_OBJECT_DISPLACEMENT, MAX_OBJECT_DISPLACEMENT),
         Setting('lockstep_republish_period', 0.1, 'lockstep: wall time without answers after '
                 'which the state is published again', 's', 0.01, 10.0, read_only=True),
+        Setting('lockstep_answer_timeout', 0.0, 'lockstep: wall time after which a cycle goes on '
+                'without the arms that have not answered (FRI policy: their previous torque '
+                'once, then the hold), as a real robot would after its deadline; 0 = wait '
+                'forever (deterministic)', 's', 0.0, 60.0, read_only=True),
         Setting('lockstep_wait_for_tracker', False, 'lockstep: publish the mocap samples of a '
                 'cycle first and the rest of the state only after the object tracker answered '
                 'each of them', read_only=True),
@@ -138,7 +145,10 @@ NODE_TABLES = {
         Setting('mode', 'gravity', 'gravity: gravity torque - damping * velocity; zero: no '
                 'torque (the arm falls)', choices=('gravity', 'zero')),
         Setting('joint_damping', 2.0, 'viscous joint damping added to the gravity torque',
-                'N m s/rad', 0.0, 100.0))),
+                'N m s/rad', 0.0, 100.0),
+        Setting('mute_window', (0.0, 0.0), 'sim time interval [start, end) whose joint states '
+                'are not answered (a stalled controller, for fault tests); empty by default',
+                's', 0.0, MAX_DURATION))),
 }
 
 
