@@ -11,7 +11,7 @@ import os
 from pathlib import Path
 
 from dual_arm_control.evaluation.experiment_metrics import reduction_percent
-from dual_arm_control.evaluation.experiments import EXPERIMENTS, PAPER_RESULTS, RESULTS_FILE
+from dual_arm_control.evaluation.paper_results import EXPERIMENTS, PAPER_RESULTS, RESULTS_FILE
 
 MISSING = '—'
 
