@@ -14,7 +14,7 @@ from dual_arm_control import contract
 from dual_arm_control.bags.writer import BagWriter
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.scenario import load_scenario
-from dual_arm_control.tools import render
+from dual_arm_control.tools import episode_bag, episode_video, render, scene_renderer
 import imageio_ffmpeg
 import mujoco
 from nav_msgs.msg import Odometry
@@ -74,11 +74,11 @@ def write_bag(path, scenario, with_joints=True):
                            for arm in contract.ARMS})
         for name, topic in topics.items():
             writer.add_topic(name, topic.msg_type, topic.qos)
-        writer.add_topic(render.PARAMETER_EVENTS_TOPIC, ParameterEvent, contract.MONITOR_QOS)
+        writer.add_topic(episode_bag.PARAMETER_EVENTS_TOPIC, ParameterEvent, contract.MONITOR_QOS)
         event = ParameterEvent(node='/sim_bridge', new_parameters=[Parameter(
             name='scenario', value=ParameterValue(type=ParameterType.PARAMETER_STRING,
                                                   string_value=str(scenario.path)))])
-        writer.write(render.PARAMETER_EVENTS_TOPIC, serialize_message(event),
+        writer.write(episode_bag.PARAMETER_EVENTS_TOPIC, serialize_message(event),
                      LOG_TIME_OFFSET_NS)
         for k in range(int(round(DURATION / PERIOD)) + 1):
             t = k * PERIOD
@@ -126,9 +126,9 @@ def bag(tmp_path_factory, scenario):
 @pytest.fixture(scope='module')
 def renderer(scenario):
     """Return a SceneRenderer of paper_toss at the test size, default camera."""
-    render.gl_backend()
-    with render.SceneRenderer(scenario, WIDTH, HEIGHT,
-                              render.CAMERA_PRESETS[render.DEFAULT_CAMERA]) as scene:
+    scene_renderer.gl_backend()
+    camera = scene_renderer.CAMERA_PRESETS[scene_renderer.DEFAULT_CAMERA]
+    with scene_renderer.SceneRenderer(scenario, WIDTH, HEIGHT, camera) as scene:
         yield scene
 
 
@@ -153,25 +153,25 @@ def changed_region(first, second, threshold=30):
 
 def test_frame_times_cover_the_interval_at_the_playback_speed():
     """Frame k shows sim time start + k speed / fps; the end is included when it falls on one."""
-    times = render.frame_times(1.0, 1.5, 10.0, 0.5)
+    times = episode_video.frame_times(1.0, 1.5, 10.0, 0.5)
     np.testing.assert_allclose(times, 1.0 + 0.05 * np.arange(11), atol=1e-12)
-    assert len(render.frame_times(0.0, DURATION, FPS, 1.0)) == 6
+    assert len(episode_video.frame_times(0.0, DURATION, FPS, 1.0)) == 6
 
 
 def test_camera_presets_and_custom_views():
     """Presets by name; 'az,el,dist[,x,y,z]' as numbers; anything else is a clear InputError."""
-    assert render.parse_camera('side') == render.CAMERA_PRESETS['side']
-    view = render.parse_camera('30,-20,1.5,0.4,0.1,0.3')
+    assert scene_renderer.parse_camera('side') == scene_renderer.CAMERA_PRESETS['side']
+    view = scene_renderer.parse_camera('30,-20,1.5,0.4,0.1,0.3')
     assert (view.azimuth, view.elevation, view.distance, view.lookat) == (
         30.0, -20.0, 1.5, (0.4, 0.1, 0.3))
     for text in ('sideways', '30,-20', '30,-20,0', 'a,b,c'):
         with pytest.raises(InputError, match='camera'):
-            render.parse_camera(text)
+            scene_renderer.parse_camera(text)
 
 
 def test_read_episode_orders_joints_and_finds_the_scenario(bag, scenario):
     """Joint arrays in A1..A7 order at the stamps, object and phase series, scenario path."""
-    record = render.read_episode(bag)
+    record = episode_bag.read_episode(bag)
     assert record.scenario == str(scenario.path)
     assert record.object_source == contract.GROUND_TRUTH_OBJECT.name
     assert (record.start, record.end) == (0.0, pytest.approx(DURATION))
@@ -189,9 +189,9 @@ def test_read_episode_orders_joints_and_finds_the_scenario(bag, scenario):
 
 def test_bag_frame_is_identical_to_a_direct_render_of_the_same_qpos(bag, scenario, renderer):
     """At a sample time the rendered bag state and the directly written qpos give equal pixels."""
-    record = render.read_episode(bag)
+    record = episode_bag.read_episode(bag)
     for t in (0.0, 0.3):
-        from_bag = next(render.episode_frames(record, renderer, [t]))
+        from_bag = next(episode_video.episode_frames(record, renderer, [t]))
         direct = direct_render(renderer, scenario, t)
         assert from_bag.shape == (HEIGHT, WIDTH, 3)
         assert np.array_equal(from_bag, direct)
@@ -201,15 +201,15 @@ def test_bag_frame_is_identical_to_a_direct_render_of_the_same_qpos(bag, scenari
 
 def test_overlay_draws_text_top_left_and_follows_the_phase(bag, renderer):
     """The overlay changes pixels only in a top band (one text row), differently per phase."""
-    record = render.read_episode(bag)
+    record = episode_bag.read_episode(bag)
     plain, reach, contact = (
-        next(render.episode_frames(record, renderer, [t], items))
+        next(episode_video.episode_frames(record, renderer, [t], items))
         for t, items in ((0.2, ()), (0.2, ('phase',)), (0.3, ('phase',))))
     text = changed_region(plain, reach, threshold=20)
     assert text.sum() > 50
     rows, columns = np.nonzero(text)
     assert rows.min() < 10 and rows.max() < HEIGHT // 3 and columns.min() < 10
-    plain_contact = next(render.episode_frames(record, renderer, [0.3]))
+    plain_contact = next(episode_video.episode_frames(record, renderer, [0.3]))
     reach_text = changed_region(plain, reach, 20)
     contact_text = changed_region(plain_contact, contact, 20)
     assert (reach_text != contact_text).sum() > 10
