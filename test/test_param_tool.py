@@ -18,10 +18,12 @@ import time
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.nodes.recorder_status import recorder_has_matched, recorder_matched_counts
-from dual_arm_control.tools.param import (coerce_value, describe_value, dump_text,
-                                          flat_parameters, main, nested_parameters,
-                                          parameter_changes, parameter_message,
-                                          parameters_for_node, parse_value, read_params_file)
+from dual_arm_control.tools.param import main
+from dual_arm_control.tools.param_events import parameter_changes
+from dual_arm_control.tools.param_values import (coerce_value, describe_value, dump_text,
+                                                 flat_parameters, nested_parameters,
+                                                 parameter_message, parameters_for_node,
+                                                 parse_value, read_params_file)
 from graph_helpers import GraphProbe, ProcessGroup, ros_environment
 import pytest
 from rcl_interfaces.msg import ParameterEvent, ParameterType, ParameterValue
