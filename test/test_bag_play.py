@@ -19,10 +19,11 @@ from builtin_interfaces.msg import Time
 from dual_arm_control import contract
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.info import inspect_bag
-from dual_arm_control.bags.reader import (BagReader, DEFAULT_QOS, parse_offered_qos_profiles,
-                                          parse_remaps, playback_window,
-                                          qos_from_offered_profiles, select_topics,
-                                          wall_offset)
+from dual_arm_control.bags.offered_qos import (DEFAULT_QOS, parse_offered_qos_profiles,
+                                               qos_from_offered_profiles)
+from dual_arm_control.bags.playback import (parse_remaps, playback_window, select_topics,
+                                            wall_offset)
+from dual_arm_control.bags.reader import BagReader
 from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, offered_qos_profiles,
                                           split_path)
 from dual_arm_control.graph import full_graph, run_parameters

@@ -3,10 +3,9 @@ BagReader: the messages of an MCAP bag (one file, its split files or a rosbag2 f
 
 Messages come out as raw CDR with topic, type name, log time and publish time, in log-time
 order across all files of the bag (ties keep the recorded order). Each topic's offered QoS is
-read back from the 'offered_qos_profiles' channel metadata. Damaged files (torn, truncated,
-corrupt: see bags/info.py) are refused unless recovery is asked for; then the messages of
-their complete records are read. Also here: the pure helpers of bag_play (topic selection,
-remapping, the playback window and the wall-clock schedule).
+read back from the 'offered_qos_profiles' channel metadata (bags/offered_qos.py). Damaged files
+(torn, truncated, corrupt: see bags/info.py) are refused unless recovery is asked for; then the
+messages of their complete records are read.
 """
 
 from dataclasses import dataclass, field
@@ -17,29 +16,15 @@ import re
 
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.info import inspect_bag, MAGIC
+from dual_arm_control.bags.offered_qos import qos_from_offered_profiles
 from dual_arm_control.bags.writer import split_path
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
-from rclpy.duration import Duration
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
-                       ReliabilityPolicy)
 import yaml
 
 METADATA_FILE = 'metadata.yaml'
-NANOSECONDS_PER_SECOND = 1_000_000_000
-# Publisher QoS of a topic without (readable) offered_qos_profiles metadata.
-DEFAULT_DEPTH = 100
-DEFAULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DEFAULT_DEPTH,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
-# rosbag2 writes an infinite QoS duration as INT64_MAX ns (recent) or as {2^31 - 1 s, 2^32 - 1
-# ns} (older): any duration from 2^31 - 1 s on means 'infinite' (= rclpy's unspecified 0).
-_INFINITE_SECONDS = 2**31 - 1
-_POLICIES = {'history': HistoryPolicy, 'reliability': ReliabilityPolicy,
-             'durability': DurabilityPolicy, 'liveliness': LivelinessPolicy}
-_UNSET_POLICY_NAMES = ('SYSTEM_DEFAULT', 'UNKNOWN', 'BEST_AVAILABLE')
 _READ_ERRORS = (McapError, EOFError, ValueError, KeyError, UnicodeDecodeError, OSError)
 
 
@@ -77,104 +62,6 @@ class _File:
     summary: object
     channels: dict = field(default_factory=dict)
     schemas: dict = field(default_factory=dict)
-
-
-# -- QoS ---------------------------------------------------------------------------------------
-
-def _policy(kind, value):
-    """Return the rclpy policy for a rosbag2 value (name or rmw integer); None if unset."""
-    enum = _POLICIES[kind]
-    try:
-        policy = enum(value if isinstance(value, int)
-                      else enum.get_from_short_key(str(value).strip().lower()))
-    except (ValueError, KeyError, TypeError):
-        return None
-    return None if policy.name in _UNSET_POLICY_NAMES else policy
-
-
-def _duration(value):
-    """Return a rosbag2 '{sec, nsec}' mapping as a Duration; None for unset or infinite."""
-    if not isinstance(value, dict):
-        return None
-    try:
-        seconds, nanoseconds = int(value.get('sec', 0)), int(value.get('nsec', 0))
-    except (TypeError, ValueError):
-        return None
-    if seconds >= _INFINITE_SECONDS or seconds < 0 or (seconds == 0 and nanoseconds == 0):
-        return None
-    return Duration(seconds=seconds, nanoseconds=nanoseconds)
-
-
-def parse_offered_qos_profiles(text):
-    """
-    Return the QoSProfiles of rosbag2 'offered_qos_profiles' YAML (one per recorded publisher).
-
-    Policies may be names ('reliable') or rmw integers (older rosbag2); unset, unknown and
-    'best_available' policies take DEFAULT_QOS's value, infinite durations stay unspecified.
-    Return [] for empty, unreadable or malformed text.
-    """
-    try:
-        entries = yaml.safe_load(text) if text else None
-    except yaml.YAMLError:
-        return []
-    if not isinstance(entries, list):
-        return []
-    profiles = []
-    for entry in entries:
-        if not isinstance(entry, dict):
-            return []
-        history = _policy('history', entry.get('history')) or DEFAULT_QOS.history
-        try:
-            depth = int(entry.get('depth', 0))
-        except (TypeError, ValueError):
-            depth = 0
-        if history == HistoryPolicy.KEEP_LAST and depth <= 0:
-            depth = DEFAULT_DEPTH
-        profile = QoSProfile(
-            history=history, depth=max(depth, 0),
-            reliability=_policy('reliability', entry.get('reliability'))
-            or DEFAULT_QOS.reliability,
-            durability=_policy('durability', entry.get('durability'))
-            or DEFAULT_QOS.durability,
-            avoid_ros_namespace_conventions=bool(
-                entry.get('avoid_ros_namespace_conventions', False)))
-        liveliness = _policy('liveliness', entry.get('liveliness'))
-        if liveliness is not None:
-            profile.liveliness = liveliness
-        for name in ('deadline', 'lifespan', 'liveliness_lease_duration'):
-            duration = _duration(entry.get(name))
-            if duration is not None:
-                setattr(profile, name, duration)
-        profiles.append(profile)
-    return profiles
-
-
-def qos_from_offered_profiles(text):
-    """
-    Return the one publisher QoS that replays a topic recorded with these offered profiles.
-
-    One profile: that profile. Several publishers: reliable only if all were, transient local
-    only if all were, keep-all if any was, else keep-last with the largest depth (rosbag2's
-    rule: every original subscriber stays compatible). No readable profile: DEFAULT_QOS
-    (reliable, volatile, keep-last 100).
-    """
-    profiles = parse_offered_qos_profiles(text)
-    if not profiles:
-        return QoSProfile(history=DEFAULT_QOS.history, depth=DEFAULT_QOS.depth,
-                          reliability=DEFAULT_QOS.reliability,
-                          durability=DEFAULT_QOS.durability)
-    if len(profiles) == 1:
-        return profiles[0]
-    keep_all = any(p.history == HistoryPolicy.KEEP_ALL for p in profiles)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
-        depth=max(p.depth for p in profiles) or DEFAULT_DEPTH,
-        reliability=(ReliabilityPolicy.RELIABLE
-                     if all(p.reliability == ReliabilityPolicy.RELIABLE for p in profiles)
-                     else ReliabilityPolicy.BEST_EFFORT),
-        durability=(DurabilityPolicy.TRANSIENT_LOCAL
-                    if all(p.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in profiles)
-                    else DurabilityPolicy.VOLATILE))
 
 
 # -- the files of a bag ------------------------------------------------------------------------
@@ -364,74 +251,3 @@ def _recoverable_records(path, summary):
     except _READ_ERRORS:
         pass
     return records
-
-
-# -- what and how to play ----------------------------------------------------------------------
-
-def select_topics(available, names=(), regex=None, exclude=None):
-    """
-    Return the topics to play, sorted: all, or those named or matching regex, minus exclude.
-
-    regex and exclude are regular expressions matched anywhere in the name (re.search), like
-    bag_record's --regex. A name that is not in the bag raises BagError.
-    """
-    available = set(available)
-    missing = sorted(set(names) - available)
-    if missing:
-        raise BagError(f'topic(s) {missing} not in the bag (it has {sorted(available)})')
-    include = _compile(regex, '--regex')
-    skip = _compile(exclude, '--exclude')
-    if not names and include is None:
-        chosen = available
-    else:
-        chosen = set(names) | {t for t in available if include and include.search(t)}
-    return sorted(t for t in chosen if not (skip and skip.search(t)))
-
-
-def _compile(pattern, option):
-    """Compile an optional regular expression; raise BagError naming the option if invalid."""
-    if pattern is None:
-        return None
-    try:
-        return re.compile(pattern)
-    except re.error as error:
-        raise BagError(f'invalid {option} {pattern!r}: {error}') from error
-
-
-def parse_remaps(rules):
-    """Return {old topic: new topic} of '/old:=/new' rules; raise BagError for a bad rule."""
-    remaps = {}
-    for rule in rules:
-        old, separator, new = rule.partition(':=')
-        if not separator or not old.startswith('/') or not new.startswith('/') or \
-                ':=' in new or any(c.isspace() for c in rule):
-            raise BagError(f'invalid --remap {rule!r}: expected /old/topic:=/new/topic')
-        if old in remaps:
-            raise BagError(f'--remap: {old} is remapped twice')
-        remaps[old] = new
-    return remaps
-
-
-def playback_window(start_ns, end_ns, start_offset=0.0, duration=None):
-    """
-    Return the log-time window [first, stop) [ns] to play of a bag spanning start_ns..end_ns.
-
-    first = start_ns + start_offset; stop = first + duration, or just past end_ns without a
-    duration. start_offset [s] must lie within the bag; duration [s] must be positive.
-    """
-    if start_offset < 0.0:
-        raise BagError(f'--start-offset must be >= 0 s, got {start_offset}')
-    if duration is not None and duration <= 0.0:
-        raise BagError(f'--duration must be > 0 s, got {duration}')
-    first = start_ns + int(round(start_offset * NANOSECONDS_PER_SECOND))
-    if first > end_ns:
-        raise BagError(f'--start-offset {start_offset} s is beyond the end of the bag '
-                       f'({(end_ns - start_ns) / NANOSECONDS_PER_SECOND:.3f} s long)')
-    if duration is None:
-        return first, end_ns + 1
-    return first, first + int(round(duration * NANOSECONDS_PER_SECOND))
-
-
-def wall_offset(log_time_ns, window_start_ns, rate):
-    """Return when [s after the start of playback] a message is due at a rate factor > 0."""
-    return (log_time_ns - window_start_ns) / NANOSECONDS_PER_SECOND / rate

@@ -22,8 +22,9 @@ import sys
 import time
 
 from dual_arm_control.bags import BagError
-from dual_arm_control.bags.reader import (BagReader, parse_remaps, playback_window,
-                                          select_topics, wall_offset)
+from dual_arm_control.bags.playback import (parse_remaps, playback_window, select_topics,
+                                            wall_offset)
+from dual_arm_control.bags.reader import BagReader
 from dual_arm_control.bags.schema import first_field_type, HEADER_TYPE
 from dual_arm_control.bags.writer import header_stamp_ns
 from dual_arm_control.nodes.bag_record import message_class
