@@ -1,14 +1,16 @@
 """
-The pure helpers of bag_play: topic selection, remapping, the playback window and schedule.
+What bag_play plays: topic selection, remapping, the playback window and the schedule.
 
-Nothing here touches ROS or the files of a bag: the options are checked and turned into the
-topics to play, their published names, the log-time window [ns] and each message's wall-clock
-offset, raising BagError with a one-line reason for a bad option.
+Nothing here touches ROS or reads messages: Playback checks bag_play's options against a
+BagReader's topics and time span and turns them into the topics to play, their published
+names, the log-time window [ns] and the number of passes; wall_offset schedules each message.
+Problems raise BagError with a one-line reason.
 """
 
 import re
 
 from dual_arm_control.bags import BagError
+from dual_arm_control.bags.schema import first_field_type, HEADER_TYPE
 
 NANOSECONDS_PER_SECOND = 1_000_000_000
 
@@ -80,3 +82,42 @@ def playback_window(start_ns, end_ns, start_offset=0.0, duration=None):
 def wall_offset(log_time_ns, window_start_ns, rate):
     """Return when [s after the start of playback] a message is due at a rate factor > 0."""
     return (log_time_ns - window_start_ns) / NANOSECONDS_PER_SECOND / rate
+
+
+class Playback:
+    """
+    What to play and how, checked against the bag before any ROS entity exists.
+
+    topics: bag topics to publish (--wait-for topics excluded); outputs: {bag topic: published
+    name}; window: log-time [first, stop) [ns]; passes: None = until interrupted.
+    """
+
+    def __init__(self, reader, options):
+        if reader.start_ns is None:
+            raise BagError(f'{reader.path}: the bag holds no messages')
+        self.wait_for = list(dict.fromkeys(options.wait_for))
+        for topic in self.wait_for:
+            if topic not in reader.topics:
+                raise BagError(f'--wait-for {topic}: not in the bag (it has '
+                               f'{sorted(reader.topics)})')
+            if first_field_type(reader.topics[topic].type_name) != HEADER_TYPE:
+                raise BagError(f'--wait-for {topic}: its type {reader.topics[topic].type_name} '
+                               f'has no header stamp')
+        selected = select_topics(reader.topics, options.topics, options.regex, options.exclude)
+        self.topics = [t for t in selected if t not in self.wait_for]
+        if not self.topics:
+            raise BagError('no topic left to play after --topics/--regex/--exclude/--wait-for')
+        remaps = parse_remaps(options.remap)
+        unused = sorted(set(remaps) - set(reader.topics))
+        if unused:
+            raise BagError(f'--remap: {unused} not in the bag')
+        self.outputs = {topic: remaps.get(topic, topic) for topic in self.topics}
+        self.wait_names = {topic: remaps.get(topic, topic) for topic in self.wait_for}
+        names = list(self.outputs.values()) + list(self.wait_names.values())
+        clashes = sorted({name for name in names if names.count(name) > 1})
+        if clashes:
+            raise BagError(f'--remap: several topics would be published as {clashes}')
+        self.window = playback_window(reader.start_ns, reader.end_ns, options.start_offset,
+                                      options.duration)
+        self.passes = options.loops if options.loops is not None else (
+            None if options.loop else 1)
