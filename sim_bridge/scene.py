@@ -43,10 +43,13 @@ PAD_ROLLING_FRICTION = 0.0001    # [m]
 # taking the maximum); the pad-box friction comes from the object catalogue through the pair.
 SCENE_FRICTION = 0.6
 # Collision bits: static scene (1) touches the object (1) and the pads (2); the pads touch
-# the object only through the explicit pair.
+# the object only through the explicit pair. Every other arm link (4 left, 8 right) touches the
+# scene, the object and the other arm's links, not its own arm's: a link's contact with anything
+# but the box through a pad is an arm collision (DualArmTwin counts them).
 SCENE_CONTYPE, SCENE_CONAFFINITY = 1, 3
 OBJECT_CONTYPE, OBJECT_CONAFFINITY = 1, 1
 PAD_CONTYPE, PAD_CONAFFINITY = 2, 0
+ARM_CONTYPES = {'left/': 4, 'right/': 8}
 
 
 @dataclass(frozen=True)
@@ -176,7 +179,12 @@ def _add_geoms(body, link, prefix, p_body_link, R_body_link):
             geom.contype, geom.conaffinity = PAD_CONTYPE, PAD_CONAFFINITY
             geom.rgba = [0.2, 0.2, 0.2, 1.0]
         else:
-            geom.contype, geom.conaffinity = 0, 0
+            geom.contype = ARM_CONTYPES[prefix]
+            geom.conaffinity = SCENE_CONTYPE | sum(
+                bit for other, bit in ARM_CONTYPES.items() if other != prefix)
+            geom.friction = [SCENE_FRICTION, 0.005, 0.0001]
+            geom.solref = CONTACT_SOLREF
+            geom.solimp = CONTACT_SOLIMP
             geom.group = 1
             geom.rgba = [1.0, 0.5, 0.1, 0.6]
 

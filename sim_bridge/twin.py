@@ -20,6 +20,7 @@ from dual_arm_control.description.cell import load_cell
 from dual_arm_control.runtime.node_settings import FRI_PERIOD, FRI_PERIODS, TORQUE_INTERFACES
 import mujoco
 import numpy as np
+from sim_bridge.arm_collisions import ArmCollisionMonitor
 from sim_bridge.scene import build_model, PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
 
 # A sample or perturbation due at time t is taken at the first physics tick with
@@ -34,11 +35,13 @@ class StepReport:
 
     clamped: the joint torque exceeded a limit and was clamped; applied: the joint torques
     [N m] (7,) the drives produced (the command, plus gravity compensation with the
-    gravity_compensated interface), after clamping.
+    gravity_compensated interface), after clamping; arm_collisions: the ArmCollisions that
+    began during the cycle (sim_bridge.arm_collisions).
     """
 
     clamped: dict
     applied: dict
+    arm_collisions: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,7 @@ class TwinState:
     pending: tuple
     ft_cache: dict
     rng_states: tuple
+    colliding_pairs: frozenset
 
 
 class DualArmTwin:
@@ -110,6 +114,7 @@ class DualArmTwin:
         mocap = scenario.sensors.mocap
         self._sample_period_ticks = 1.0 / (mocap.rate_hz * PHYSICS_TIMESTEP)
         self._latency = mocap.latency
+        self._collisions = ArmCollisionMonitor(self.model, self.index)
         self.reset()
 
     @property
@@ -131,6 +136,11 @@ class DualArmTwin:
     def physics_timestep(self):
         """Physics step [s]."""
         return PHYSICS_TIMESTEP
+
+    @property
+    def arm_collisions(self):
+        """Every ArmCollision since reset(), in order."""
+        return tuple(self._collision_log)
 
     def torque_limits(self, arm):
         """Return the (7,) joint torque limits [N m] of an arm (URDF effort limits)."""
@@ -154,6 +164,8 @@ class DualArmTwin:
         mocap_seed, ft_seed = np.random.SeedSequence(self.scenario.seed).spawn(2)
         self._mocap_rng = np.random.default_rng(mocap_seed)
         self._ft_rng = np.random.default_rng(ft_seed)
+        self._collisions.reset()
+        self._collision_log = []
         self._sample_mocap()
         self._update_ft()
 
@@ -177,13 +189,16 @@ class DualArmTwin:
             clamped[arm] = bool(np.any(np.abs(commands[arm]) > limit))
             applied[arm] = np.clip(commands[arm], -limit, limit)
             self.data.ctrl[self.index.arms[arm].actuators] = applied[arm]
+        collisions = []
         for _ in range(self._substeps):
             self._apply_due_perturbations()
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
             self._sample_mocap()
+            collisions.extend(self._collisions.update(self.data, self.time))
         self._update_ft()
-        return StepReport(clamped=clamped, applied=applied)
+        self._collision_log.extend(collisions)
+        return StepReport(clamped=clamped, applied=applied, arm_collisions=tuple(collisions))
 
     def hold_torques(self, arm):
         """
@@ -293,7 +308,8 @@ class DualArmTwin:
             next_sample=self._next_sample, next_perturbation=self._next_perturbation,
             pending=tuple(self._pending), ft_cache=copy.deepcopy(self._ft_cache),
             rng_states=(copy.deepcopy(self._mocap_rng.bit_generator.state),
-                        copy.deepcopy(self._ft_rng.bit_generator.state)))
+                        copy.deepcopy(self._ft_rng.bit_generator.state)),
+            colliding_pairs=self._collisions.colliding_pairs)
 
     def set_state(self, state):
         """Restore a snapshot taken by state()."""
@@ -308,6 +324,7 @@ class DualArmTwin:
         self._ft_cache = copy.deepcopy(state.ft_cache)
         self._mocap_rng.bit_generator.state = copy.deepcopy(state.rng_states[0])
         self._ft_rng.bit_generator.state = copy.deepcopy(state.rng_states[1])
+        self._collisions.colliding_pairs = state.colliding_pairs
 
     def _arm(self, arm):
         if arm not in ARMS:

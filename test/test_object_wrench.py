@@ -29,7 +29,7 @@ def test_tracking_object_needs_only_its_weight():
 
 def test_estimated_twist_enters_the_damping():
     # With the object at rest the wrench is the reference's feed-forward 12.64 v_d + m g; a
-    # measured velocity error must change it (digest bug 4 left the object velocity at zero).
+    # measured velocity error must change it (an object velocity stuck at zero would not).
     config = ObjectWrenchConfig()
     inertia = box_inertia(MASS, SIZE)
     v_desired = np.array([0.5, 0.0, 0.5])

@@ -157,7 +157,7 @@ def test_coupling_eta_limits_and_monotone():
     assert np.all(np.diff(etas)[etas[:-1] < 1.0 - 1e-12] < 0.0)
     assert etas[-1] == pytest.approx(1.0 - np.exp(-1.0 / (20.0 + 1e-6)), rel=1e-9)
     assert orientation_coupling(target + [0.0, 100.0, 0.0], target, config) < 0.011
-    # the digest's table value for the reference coupling (sigma = 1 m): eta = 0.9 at 0.434 m
+    # the reference coupling's tabulated value (sigma = 1 m): eta = 0.9 at 0.434 m
     assert orientation_coupling(target + [0.0, 0.434, 0.0], target, config) == \
         pytest.approx(0.9, abs=1e-3)
     sharper = OrientationDsConfig(coupling_sigma=0.1)

@@ -64,8 +64,8 @@ def test_orientation_error_vector_matches_rotation_log():
 
 
 def test_controller_uses_the_tool_point_twist(arm):
-    # Bug 7 of the digest had the sign of w x d wrong: the damping must act on the velocity of
-    # the tool point itself, which finite differences of tool_pose give independently.
+    # The damping must act on the velocity of the tool point itself (the sign of w x d
+    # matters), which finite differences of tool_pose give independently.
     _, model, q_home = arm
     config = PassiveControllerConfig(orientation_stiffness=0.0, null_space_stiffness=(0.0,) * 7)
     controller = PassiveController(model, q_home, config)

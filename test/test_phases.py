@@ -200,7 +200,7 @@ def test_second_episode_is_clean(dt):
     """
     After a full episode a second one repeats the same transitions, shifted by its start.
 
-    The reference latched its release flag forever (digest 10.5), releasing at once in the
+    A release flag latched forever would release at once in the
     second episode; here the release again happens at 0.87 s after the episode's origin. The
     start command is held high through the whole first episode: it must act only once.
     """

@@ -4,8 +4,8 @@ import math
 
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.description.cell import load_cell
-from dual_arm_control.scenario import (load_scenario, MocapConfig, ObjectConfig, Scenario,
-                                       Speeds)
+from dual_arm_control.scenario import load_scenario, ObjectConfig, Scenario, Speeds
+from dual_arm_control.sensor_models import MocapConfig
 import numpy as np
 import pytest
 import yaml

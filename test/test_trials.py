@@ -19,8 +19,9 @@ from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import episode_metrics, METRIC_KEYS
 from dual_arm_control.evaluation.trials import failure_reason, main, summarize
 from dual_arm_control.inprocess import run_episode
-from dual_arm_control.scenario import (load_scenario, Randomization, sample_trial,
-                                       scenario_document)
+from dual_arm_control.randomization import Randomization
+from dual_arm_control.scenario import load_scenario, scenario_document
+from dual_arm_control.trial_sampling import sample_trial
 import numpy as np
 import pytest
 import yaml

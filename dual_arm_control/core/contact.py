@@ -7,7 +7,7 @@ origin. A resting tool therefore reads minus its weight, and after removing the 
 weight the remainder is, quasi-statically, the wrench the pad applies to the object. A sensor
 that reports the opposite sign (load applied to the sensor) must be negated by its driver.
 
-The detection follows the reference setup (digest 1.3, 5.1): normal force above 2 N and the tool
+The detection follows the authors' setup: normal force above 2 N and the tool
 within 0.055 m of its face along the normal, plus a tangential gate that the reference computed
 but never used. Filters use time constants in seconds, so the behaviour does not depend on the
 update rate.
@@ -112,7 +112,7 @@ class ContactGeometry:
 
 def contact_geometry(p_world_tool, R_world_tool, p_world_grasp, n_world_grasp, config):
     """
-    Return the ContactGeometry of one pad against its face (geometry gate of digest 1.3).
+    Return the ContactGeometry of one pad against its face (the geometry gate).
 
     p_world_tool: (3,) m, tool (pad centre) origin. R_world_tool: (3, 3). p_world_grasp: (3,) m,
     grasp point on the face. n_world_grasp: (3,) grasp normal pointing into the object.
@@ -192,7 +192,7 @@ class ContactDetector:
 @dataclass(frozen=True)
 class FtCompensationConfig:
     """
-    Tool load and bias window of the FT compensation (reference setup, digest 5.1).
+    Tool load and bias window of the FT compensation (the authors' setup).
 
     Fields:
         tool_mass: kg, >= 0; mass below the sensor (0.2 kg).
@@ -222,7 +222,7 @@ def tool_weight_reading(R_world_sensor, config):
     Return the (6,) reading [force; torque] a resting tool produces, sensor frame (N, N m).
 
     The sensor holds the tool against gravity: force = -m R^T g, torque = p_com x force, both
-    with the CURRENT sensor rotation R_world_sensor (3, 3) (digest 21: no one-cycle lag).
+    with the CURRENT sensor rotation R_world_sensor (3, 3) (no one-cycle lag).
     """
     R_world_sensor = finite_array('R_world_sensor', R_world_sensor, (3, 3))
     force = -config.tool_mass * (R_world_sensor.T @ np.asarray(config.gravity_world))

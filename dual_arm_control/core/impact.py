@@ -36,17 +36,25 @@ class ImpactConfig:
     synchronise: True keeps the attraction of the relative coordinate along e1 while the
         desired velocity is applied (see impact_target_field); False is eq. 6 as printed,
         which switches that attraction off as gamma -> 1.
+    pad_half_height: half extent of a pad across the impact plane, i.e. how far below the
+        grasp point the pad reaches [m]. Default 0.05 (the 0.15 x 0.10 m pad).
+    support_clearance: the pad's lowest point stays this far above the surface the box rests
+        on while it runs in along e1 [m], see clearance_limited_direction. Default 0.02.
     region: modulation region around each grasp point.
     """
 
     impact_speed: float = 0.45
     max_tilt_deg: float = 40.0
     synchronise: bool = True
+    pad_half_height: float = 0.05
+    support_clearance: float = 0.02
     region: ModulationRegionConfig = ModulationRegionConfig()
 
     def __post_init__(self):
         check_range('impact_speed', self.impact_speed, 0.0, 2.0, 'm/s', low_open=True)
         check_range('max_tilt_deg', self.max_tilt_deg, 0.0, 89.0, 'deg')
+        check_range('pad_half_height', self.pad_half_height, 0.0, 0.5, 'm')
+        check_range('support_clearance', self.support_clearance, 0.0, 0.5, 'm')
         if not isinstance(self.synchronise, (bool, np.bool_)):
             raise ConfigError(f'synchronise must be true or false, got {self.synchronise!r}')
         if not isinstance(self.region, ModulationRegionConfig):
@@ -111,6 +119,33 @@ def impact_direction(contact_normal, object_desired_velocity, max_tilt):
         return normal
     tilt = min(math.atan2(tangential_norm, along), max_tilt)
     return math.cos(tilt) * normal + math.sin(tilt) / tangential_norm * tangential
+
+
+def clearance_limited_direction(direction, height_above_support, config):
+    """
+    Return the impact direction e1 (3,) with its rise limited so the run-in clears the support.
+
+    The DS runs the last rho along e1 from the transitory attractor x_t = x_d - rho e1 (eq. 5):
+    a direction that rises toward the grasp point starts the run-in rho e1_z below it. With the
+    grasp point height_above_support [m] above the surface the box rests on, the pad's lowest
+    point (pad_half_height below its centre) stays support_clearance above that surface when
+    e1_z <= (height_above_support - pad_half_height - support_clearance) / rho. A steeper e1
+    keeps its horizontal heading and gets the largest rise allowed (none if the box is too
+    low for any); a level or falling e1 is returned unchanged.
+    """
+    direction = np.asarray(direction, dtype=float)
+    rho = config.region.transitory_distance
+    room = height_above_support - config.pad_half_height - config.support_clearance
+    max_rise = max(room, 0.0) / rho
+    if direction[2] <= max_rise:
+        return direction
+    horizontal = direction[:2]
+    horizontal_norm = math.hypot(horizontal[0], horizontal[1])
+    if horizontal_norm < _PARALLEL_TOLERANCE:
+        return direction
+    rise = min(max_rise, 1.0)
+    scale = math.sqrt(1.0 - rise * rise) / horizontal_norm
+    return np.array([horizontal[0] * scale, horizontal[1] * scale, rise])
 
 
 def desired_impact_velocity(directions, impact_speed):

@@ -15,8 +15,9 @@ from dual_arm_control.core.contact import (ContactConfig, ContactDetector, FtBia
 from dual_arm_control.core.cooperative import CoordinationConfig
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.core.impact import (impact_direction, impact_ds_velocity,
-                                          impact_geometry, ImpactConfig, max_impact_tilt)
+from dual_arm_control.core.impact import (clearance_limited_direction, impact_direction,
+                                          impact_ds_velocity, impact_geometry, ImpactConfig,
+                                          max_impact_tilt)
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
                                                 lift_velocity, LiftConfig, place_velocity,
                                                 PlaceConfig, release_velocity, toss_geometry,
@@ -27,6 +28,7 @@ from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                OrientationDsConfig)
 from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, PhaseMachine,
                                           Task, task_from_name)
+from dual_arm_control.core.reachability import ReachabilityConfig
 from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  boosted_velocity, reach_speed,
                                                  saturated_velocity, SpeedFilter,
@@ -52,8 +54,8 @@ class MotionGeneratorConfig:
         release_opening_speed: m/s, > 0; pads move apart along their normals at release.
         toss_speed_time_constant: s, > 0; the object's desired speed rises from the impact speed
             to the toss speed with this time constant after contact.
-        coordination, impact, toss, lift, place, speed, orientation, phases, contact, ft: the
-            component configs (see their modules).
+        coordination, impact, toss, lift, place, speed, orientation, phases, contact, ft,
+            reachability: the component configs (see their modules).
 
     """
 
@@ -75,6 +77,7 @@ class MotionGeneratorConfig:
     phases: PhaseConfig = field(default_factory=PhaseConfig)
     contact: ContactConfig = field(default_factory=ContactConfig)
     ft: FtCompensationConfig = field(default_factory=FtCompensationConfig)
+    reachability: ReachabilityConfig = field(default_factory=ReachabilityConfig)
 
     def __post_init__(self):
         object.__setattr__(self, 'task', task_from_name(self.task))
@@ -176,6 +179,7 @@ class DualArmMotionGenerator:
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
         self._release_object_velocity = np.zeros(3)
+        self._grasp_offset = np.zeros(3)
 
     @property
     def config(self):
@@ -186,6 +190,15 @@ class DualArmMotionGenerator:
     def phase(self):
         """Return the current Phase."""
         return self._phase_machine.phase
+
+    @property
+    def grasp_offset(self):
+        """Return the offset (3,) [m] of the grasp points from the face centres, object frame."""
+        return self._grasp_offset.copy()
+
+    def set_grasp_offset(self, offset):
+        """Grasp the faces at offset (3,) [m] from their centres (object frame) from now on."""
+        self._grasp_offset = finite_array('grasp_offset', offset, (3,)).copy()
 
     def reconfigure(self, config):
         """Apply a new configuration at the next tick; the phase and filters are kept."""
@@ -209,7 +222,8 @@ class DualArmMotionGenerator:
         p_object = finite_array('p_world_object', obj.p_world_object, (3,))
         v_object = finite_array('v_world_object', obj.v_world_object, (3,))
         R_object = finite_array('R_world_object', obj.R_world_object, (3, 3))
-        frames = {arm: grasp_frame(arm, p_object, R_object, config.object_size) for arm in ARMS}
+        frames = {arm: grasp_frame(arm, p_object, R_object, config.object_size,
+                                   self._grasp_offset) for arm in ARMS}
         pad_forces, contacts = {}, {}
         for index, arm in enumerate(ARMS):
             compensated = self._ft[arm].update(arms[arm].ft_wrench_sensor,
@@ -233,7 +247,8 @@ class DualArmMotionGenerator:
         if phase_output.transition is not None and phase is Phase.REACH:
             self._reach_speed.reset(0.0)
         object_velocity = self._object_velocity(p_object, phase, dt)
-        directions = impact_directions(config, frames, object_velocity)
+        directions = impact_directions(config, frames, object_velocity,
+                                       support_height_below(config, p_object))
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
         elif phase in (Phase.CONTACT, Phase.MANIPULATE):
@@ -362,8 +377,24 @@ def object_motion_direction(config, p_world_object):
     return lift_velocity(p_world_object, config.lift, config.coordination)
 
 
-def impact_directions(config, frames, object_velocity):
-    """Return {arm: (3,)} unit impact directions: each face normal tilted toward the motion."""
+def impact_directions(config, frames, object_velocity, support_height=None):
+    """
+    Return {arm: (3,)} unit impact directions: each face normal tilted toward the motion.
+
+    support_height [m]: height of the surface the box rests on; when given, a direction's rise
+    is limited so the pad's run-in clears it (clearance_limited_direction).
+    """
     max_tilt = max_impact_tilt(config.impact)
-    return {arm: impact_direction(frames[arm].normal, object_velocity, max_tilt)
-            for arm in ARMS}
+    directions = {}
+    for arm in ARMS:
+        direction = impact_direction(frames[arm].normal, object_velocity, max_tilt)
+        if support_height is not None:
+            direction = clearance_limited_direction(
+                direction, frames[arm].p_world_grasp[2] - support_height, config.impact)
+        directions[arm] = direction
+    return directions
+
+
+def support_height_below(config, p_world_object):
+    """Return the height [m] of the surface a resting, upright box centred at p rests on."""
+    return float(p_world_object[2]) - 0.5 * config.object_size[2]

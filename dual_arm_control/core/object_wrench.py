@@ -93,6 +93,18 @@ def desired_object_wrench(v_world_object, w_world_object, v_world_desired, w_wor
     return wrench
 
 
+def inertial_wrench(mass, inertia_world, a_world_desired, alpha_world_desired):
+    """
+    Return M_o [a_d; alpha_d] (6,) [N, N m]: the inertial part of the object's inverse dynamics.
+
+    Added to the passive DS's f_o^d it is the feed-forward of footnote 3, so the hands push a
+    heavy box along its desired motion instead of waiting for the velocity error to grow.
+    """
+    return np.concatenate((mass * finite_array('a_world_desired', a_world_desired, (3,)),
+                           finite_array('inertia_world', inertia_world, (3, 3))
+                           @ finite_array('alpha_world_desired', alpha_world_desired, (3,))))
+
+
 def inverse_dynamics_object_wrench(a_world_desired, alpha_world_desired, w_world_object, mass,
                                    inertia_world, environment_wrench=None, gravity=9.81):
     """
@@ -106,9 +118,7 @@ def inverse_dynamics_object_wrench(a_world_desired, alpha_world_desired, w_world
     inertia_world = finite_array('inertia_world', inertia_world, (3, 3))
     wrench = object_bias_wrench(mass, inertia_world,
                                 finite_array('w_world_object', w_world_object, (3,)), gravity)
-    wrench[:3] += mass * finite_array('a_world_desired', a_world_desired, (3,))
-    wrench[3:] += inertia_world @ finite_array('alpha_world_desired', alpha_world_desired,
-                                               (3,))
+    wrench += inertial_wrench(mass, inertia_world, a_world_desired, alpha_world_desired)
     if environment_wrench is not None:
         wrench += finite_array('environment_wrench', environment_wrench, (6,))
     return wrench

@@ -45,7 +45,7 @@ _NO_WRENCH.flags.writeable = False
 @dataclasses.dataclass(frozen=True)
 class PassiveControllerConfig:
     """
-    Gains of the passive-DS torque law; defaults within the reference setup's ranges (digest 7).
+    Gains of the passive-DS torque law; defaults within the authors' setup's ranges.
 
     Vector fields are 7 numbers, joints A1..A7.
     """
@@ -67,6 +67,9 @@ class PassiveControllerConfig:
     """d_n, joint damping in the null space, same on every joint [N m s/rad]."""
     null_space_error_limit: float = 0.4
     """Per-joint posture error saturation [rad]."""
+    elbow_lift_force: float = 10.0
+    """Upward force on the elbow, applied in the null space [N]: of the postures that hold the
+    tool, the arm prefers the elbow-up one, which keeps the forearm off the tables."""
     projector_damping: float = 1e-3
     """eps of the damped pseudo-inverse in the null-space projector [m, rad]."""
     hold_damping: tuple = (10.0, 10.0, 8.0, 8.0, 4.0, 2.0, 2.0)
@@ -84,6 +87,7 @@ class PassiveControllerConfig:
                     low_open=True)
         check_range('projector_damping', self.projector_damping, 0.0, 1.0, '', low_open=True)
         check_range('null_space_damping', self.null_space_damping, 0.0, 1e3, 'N m s/rad')
+        check_range('elbow_lift_force', self.elbow_lift_force, 0.0, 500.0, 'N')
         for name, unit in (('null_space_stiffness', 'N m/rad'), ('hold_damping', 'N m s/rad')):
             values = check_vector(name, getattr(self, name), JOINTS, unit)
             for index, value in enumerate(values):
@@ -224,10 +228,12 @@ class PassiveController:
         self.q_null = q_null
 
     def null_space_torque(self, jacobian, q, dq):
-        """Return N tau_null (7,) [N m], the posture torque projected off the tool."""
+        """Return N tau_null (7,) [N m]: posture and elbow-lift torques projected off the tool."""
         limit = self.config.null_space_error_limit
         error = np.minimum(np.maximum(q - self.q_null, -limit), limit)
         torque = -self._null_stiffness * error - self._null_damping * dq
+        if self.config.elbow_lift_force > 0.0:
+            torque += self.model.elbow_jacobian(q)[2] * self.config.elbow_lift_force
         return torque - jacobian.T @ np.linalg.solve(
             jacobian @ jacobian.T + self._regulariser, jacobian @ torque)
 

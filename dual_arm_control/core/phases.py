@@ -1,5 +1,5 @@
 """
-Task phase machine of the grab-and-toss task (paper section II, Fig. 2; digest 1.3).
+Task phase machine of the grab-and-toss task (paper section II, Fig. 2).
 
 A pure state machine: update(inputs, dt) advances the time in phase by dt seconds, evaluates the
 transition of the current phase on the new inputs and returns a PhaseMachineOutput. At most one
@@ -12,8 +12,8 @@ the rate. Phases:
 
 go_home from REACH jumps to RETRACT, from CONTACT/MANIPULATE to RELEASE (open the hands first);
 reset returns to STANDBY at once. Commands act on their rising edge, so a command held high for
-several updates acts once. All latches are cleared at every episode start (the reference's
-release flag was never reset, digest 10.5).
+several updates acts once. All latches are cleared at every episode start (a release
+flag must not outlive its episode).
 """
 
 from dataclasses import dataclass, field
@@ -68,7 +68,7 @@ class PhaseConfig:
             distance of the release path (the line through x_release along the release
             velocity).
         place_tolerance: m, > 0; place release when ||x_o - x_place|| <= this (0.012 m: the
-            place target lies 1 cm below the resting pose, so this is on the table) ...
+            place target lies a few mm below the resting pose, so this is on the table) ...
         place_speed: m/s, > 0; ... and ||v_o|| < place_speed.
         lift_tolerance: m, > 0; the 'lift_reached' event fires within this of the lift pose.
         grasp_loss_timeout: s, > 0; a pad out of contact this long in MANIPULATE releases.

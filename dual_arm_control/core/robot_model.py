@@ -16,6 +16,8 @@ import pinocchio as pin
 TOOL_FRAME = 'tool'
 FLANGE_FRAME = 'flange'
 SENSOR_FRAME = 'ft_sensor'
+# pinocchio joint index of A4, whose axis passes through the elbow (0 is the universe).
+ELBOW_JOINT = 4
 
 
 class ArmModel:
@@ -139,6 +141,12 @@ class ArmModel:
         """Return the (6, 7) tool Jacobian, world-aligned at the tool point, [linear; angular]."""
         return pin.computeFrameJacobian(self.model, self.data, self._q(q), self._tool_id,
                                         pin.LOCAL_WORLD_ALIGNED).copy()
+
+    def elbow_jacobian(self, q):
+        """Return the (3, 7) linear Jacobian of the elbow (the A4 axis origin), world-aligned."""
+        pin.computeJointJacobians(self.model, self.data, self._q(q))
+        return pin.getJointJacobian(self.model, self.data, ELBOW_JOINT,
+                                    pin.LOCAL_WORLD_ALIGNED)[:3].copy()
 
     def tool_twist(self, q, dq):
         """Return (v_world (3,) [m/s], w_world (3,) [rad/s]) of the tool point."""

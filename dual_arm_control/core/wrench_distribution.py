@@ -6,13 +6,13 @@ QP (wrench_qp.py), ramps the grasp in after contact and moves each pad's moment 
 the form the arm controllers apply through J^T.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import SolverError
 from dual_arm_control.core.geometry import cross3
 from dual_arm_control.core.object_wrench import (box_inertia, desired_object_wrench,
-                                                 ObjectWrenchConfig)
+                                                 inertial_wrench, ObjectWrenchConfig)
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.validation import check_range
 from dual_arm_control.core.wrench_qp import (ContactWrenchQP, pad_contact_geometry,
@@ -40,17 +40,53 @@ class WrenchDistributorConfig:
     Wrench distribution around the QP (SI units).
 
     Fields: ramp_time_constant s > 0, the grasp wrench rises as 1 - exp(-t / tau) after contact
-    (and drops to zero at once outside CONTACT / MANIPULATE); qp and object: the QP's and the
-    object wrench's configs.
+    (and drops to zero at once outside CONTACT / MANIPULATE); design_acceleration m/s^2 >= 0,
+    the largest object acceleration the grasp must carry on top of gravity, and
+    grip_safety_factor >= 1: together they raise the QP's normal-force bounds for heavy boxes
+    (grip_normal_force); feed_forward_time_constant s > 0: low-pass of the desired object
+    acceleration (the difference of the DS's desired velocity between ticks) whose inertial
+    wrench is added to f_o^d, clipped to 2 design_acceleration; qp and object: the QP's and
+    the object wrench's configs.
     """
 
     ramp_time_constant: float = 0.02
+    design_acceleration: float = 6.0
+    grip_safety_factor: float = 1.2
+    feed_forward_time_constant: float = 0.02
     qp: WrenchQPConfig = WrenchQPConfig()
     object: ObjectWrenchConfig = ObjectWrenchConfig()  # noqa: A003
 
     def __post_init__(self):
         check_range('ramp_time_constant', self.ramp_time_constant, 0.0, 1.0, 's',
                     low_open=True)
+        check_range('design_acceleration', self.design_acceleration, 0.0, 50.0, 'm/s^2')
+        check_range('grip_safety_factor', self.grip_safety_factor, 1.0, 10.0, '')
+        check_range('feed_forward_time_constant', self.feed_forward_time_constant, 0.0, 1.0,
+                    's', low_open=True)
+
+
+def grip_normal_force(mass, friction_coefficient, acceleration, gravity, safety_factor):
+    """
+    Return the normal force [N] each of two pads needs to hold a box of mass [kg].
+
+    The friction pyramid of eq. 10 lets each pad carry mu / sqrt(2) f_z along one tangent, and
+    the two pads share the load m (g + a) (gravity plus the design acceleration, both along
+    the same tangent in the worst case): f_z >= safety m (g + a) / (sqrt(2) mu).
+    """
+    return (safety_factor * mass * (gravity + acceleration)
+            / (np.sqrt(2.0) * friction_coefficient))
+
+
+def qp_config_for_mass(config, mass):
+    """Return config.qp with its normal-force bounds raised to hold mass (grip_normal_force)."""
+    qp = config.qp
+    required = grip_normal_force(mass, qp.friction_coefficient, config.design_acceleration,
+                                 config.object.gravity, config.grip_safety_factor)
+    if required <= qp.min_normal_force:
+        return qp
+    span = qp.max_normal_force / qp.min_normal_force
+    return replace(qp, min_normal_force=required, squeeze_force=max(qp.squeeze_force, required),
+                   max_normal_force=max(qp.max_normal_force, span * required))
 
 
 @dataclass(frozen=True)
@@ -69,16 +105,18 @@ class WrenchDistributor:
 
     def __init__(self, config, object_mass, object_size):
         self._config = config
-        self._qp = ContactWrenchQP(config.qp)
         self._mass = float(object_mass)
+        self._qp = ContactWrenchQP(qp_config_for_mass(config, self._mass))
         self._size = np.asarray(object_size, dtype=float)
         self._inertia_object = box_inertia(self._mass, self._size)
         self._gain = 0.0
+        self._v_desired_previous = None
+        self._a_desired = np.zeros(3)
 
     def reconfigure(self, config):
         """Use new weights, limits and gains from the next tick on."""
         self._config = config
-        self._qp = ContactWrenchQP(config.qp)
+        self._qp = ContactWrenchQP(qp_config_for_mass(config, self._mass))
 
     def step(self, phase, p_world_tools, R_world_tools, p_world_object, R_world_object,
              v_world_object, w_world_object, v_world_desired, w_world_desired, dt):
@@ -86,12 +124,17 @@ class WrenchDistributor:
         zero = {arm: np.zeros(6) for arm in ARMS}
         if phase not in GRASPING_PHASES:
             self._gain = 0.0
+            self._v_desired_previous = None
+            self._a_desired = np.zeros(3)
             return DistributedWrenches(zero, np.zeros(6), 0.0, True, 'not grasping')
         self._gain += (1.0 - self._gain) * -np.expm1(-dt / self._config.ramp_time_constant)
         inertia_world = R_world_object @ self._inertia_object @ R_world_object.T
         object_wrench = desired_object_wrench(v_world_object, w_world_object, v_world_desired,
                                               w_world_desired, self._mass, inertia_world,
                                               self._config.object)
+        object_wrench += inertial_wrench(self._mass, inertia_world,
+                                         self._desired_acceleration(v_world_desired, dt),
+                                         np.zeros(3))
         contacts = {arm: pad_contact_geometry(arm, p_world_tools[arm], R_world_tools[arm],
                                               p_world_object, R_world_object, self._size)
                     for arm in ARMS}
@@ -104,3 +147,16 @@ class WrenchDistributor:
             WRENCH_DECIMALS) for arm in ARMS}
         return DistributedWrenches(wrenches, object_wrench, self._gain, result.feasible,
                                    result.status)
+
+    def _desired_acceleration(self, v_world_desired, dt):
+        """Return the filtered, clipped desired object acceleration (3,) [m/s^2]."""
+        config = self._config
+        v_world_desired = np.asarray(v_world_desired, dtype=float)
+        if self._v_desired_previous is not None and dt > 0.0:
+            raw = (v_world_desired - self._v_desired_previous) / dt
+            self._a_desired = self._a_desired + (raw - self._a_desired) * -np.expm1(
+                -dt / config.feed_forward_time_constant)
+        self._v_desired_previous = v_world_desired
+        limit = 2.0 * config.design_acceleration
+        norm = float(np.linalg.norm(self._a_desired))
+        return self._a_desired * (limit / norm) if norm > limit else self._a_desired

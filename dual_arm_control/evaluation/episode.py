@@ -10,7 +10,8 @@ from pathlib import Path
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.core.motion_generator import impact_directions, object_motion_direction
+from dual_arm_control.core.motion_generator import (impact_directions, object_motion_direction,
+                                                    support_height_below)
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.evaluation.trajectory import load_trajectory
@@ -24,7 +25,7 @@ METRIC_KEYS = (
     'impact_speed_right', 't_release', 'release_position', 'release_position_error',
     'release_velocity', 'release_velocity_error', 'landing_position', 'landing_error',
     'cycle_time', 'place_position_error', 'energy_left', 'energy_right', 'max_slip',
-    'torque_clamp_count', 'refused_message_count',
+    'torque_clamp_count', 'refused_message_count', 'arm_collision_count', 'box_tilt_at_place',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -34,6 +35,7 @@ RELEASE_VELOCITY_LIMIT = 0.10
 LANDING_LIMIT = 0.05
 PLACE_LIMIT = 0.03
 PLACE_SPEED_LIMIT = 0.1
+PLACE_TILT_LIMIT = 5.0
 SLIP_LIMIT = 0.01
 HOLD_DRIFT_LIMIT = 0.001
 
@@ -61,7 +63,8 @@ def _contact_directions(scenario, cell):
     config = motion_config_for_scenario(scenario, cell)
     motion = object_motion_direction(config, scenario.object.position)
     return ({arm: frames[arm].normal for arm in ARMS},
-            impact_directions(config, frames, motion))
+            impact_directions(config, frames, motion,
+                              support_height_below(config, scenario.object.position)))
 
 
 def predicted_landing(p_release, v_release, object_height, cell):
@@ -150,6 +153,7 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
             result['place_position_error'] = float(
                 np.linalg.norm(data['object_position'][-1] - scenario.place))
             result['place_speed'] = float(np.linalg.norm(v_release))
+            result['box_tilt_at_place'] = metrics.tilt_degrees(data['object_quat_xyzw'][-1])
     home = metrics.return_home_index(t, [data[f'{arm}_tool_position'] for arm in ARMS],
                                      release)
     result['cycle_time'] = _time(t, home)
@@ -162,6 +166,13 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         result[f'max_tool_drift_{arm}'] = float(drift.max())
     for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
         result[counter] = int(data[counter]) if counter in data else None
+    collision_times = data.get('arm_collision_times', np.zeros(0))
+    result['arm_collision_count'] = int(len(collision_times))
+    result['first_arm_collision'] = None
+    if len(collision_times):
+        result['first_arm_collision'] = {
+            't': float(collision_times[0] - start_time),
+            'geoms': [str(name) for name in data['arm_collision_geoms'][0]]}
     result['sim_duration'] = float(data['t'][-1] - data['t'][0])
     result['success'] = bool(_success(scenario, result))
     return result
@@ -172,6 +183,8 @@ def _success(scenario, result):
     gap = result['contact_time_gap']
     grasped = gap is not None and gap <= CONTACT_GAP_LIMIT and result['t_grasp'] is not None
     no_slip = result['max_slip'] is not None and result['max_slip'] <= SLIP_LIMIT
+    if result['arm_collision_count']:
+        return False
     if scenario.task in TOSS_TASKS:
         return (grasped and no_slip and result['release_position_error'] is not None
                 and result['release_position_error'] <= RELEASE_POSITION_LIMIT
@@ -181,7 +194,8 @@ def _success(scenario, result):
     if scenario.task in PLACE_TASKS:
         return (grasped and result['place_position_error'] is not None
                 and result['place_position_error'] <= PLACE_LIMIT
-                and result['place_speed'] <= PLACE_SPEED_LIMIT)
+                and result['place_speed'] <= PLACE_SPEED_LIMIT
+                and result['box_tilt_at_place'] <= PLACE_TILT_LIMIT)
     return grasped and no_slip
 
 

@@ -146,3 +146,9 @@ def relative_velocity_error(velocity, desired_velocity):
     desired_velocity = np.asarray(desired_velocity, dtype=float)
     return float(np.linalg.norm(np.asarray(velocity) - desired_velocity)
                  / np.linalg.norm(desired_velocity))
+
+
+def tilt_degrees(object_quat_xyzw):
+    """Return the angle [deg] between the object's z axis and the world's vertical."""
+    z_axis = quat_xyzw_to_matrix(object_quat_xyzw)[:, 2]
+    return float(np.degrees(np.arccos(np.clip(z_axis[2], -1.0, 1.0))))

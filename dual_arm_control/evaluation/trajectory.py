@@ -28,6 +28,11 @@ OBJECT_FIELDS = {
     'object_angular_velocity': ((3,), 'object angular velocity in world [rad/s]'),
 }
 COUNTER_FIELDS = ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count')
+# The arm collisions of the episode (optional in a log: older logs lack them).
+COLLISION_FIELDS = {
+    'arm_collision_times': ((), 'sim time each arm collision began [s]'),
+    'arm_collision_geoms': ((2,), 'the two MuJoCo geoms of each arm collision [str]'),
+}
 
 
 class TrajectoryRecorder:
@@ -41,6 +46,7 @@ class TrajectoryRecorder:
         for name in OBJECT_FIELDS:
             self._rows[name] = []
         self.counters = dict.fromkeys(COUNTER_FIELDS, 0)
+        self._collisions = ()
 
     def __len__(self):
         return len(self._rows['t'])
@@ -48,6 +54,7 @@ class TrajectoryRecorder:
     def append(self, twin, applied_torques):
         """Append the twin's current ground truth; applied_torques = {arm: (7,)} last applied."""
         self._rows['t'].append(twin.time)
+        self._collisions = twin.arm_collisions
         for arm in ARMS:
             joints = twin.joint_state(arm)
             tool_position, _ = twin.tool_pose(arm)
@@ -73,6 +80,10 @@ class TrajectoryRecorder:
             data[f'{arm}_pad_contact'] = data[f'{arm}_pad_contact'].astype(bool)
         for name, value in self.counters.items():
             data[name] = np.array(value)
+        data['arm_collision_times'] = np.array([item.time for item in self._collisions],
+                                               dtype=float)
+        data['arm_collision_geoms'] = np.array([item.geoms for item in self._collisions],
+                                               dtype=str).reshape(-1, 2)
         return data
 
     def save(self, path):

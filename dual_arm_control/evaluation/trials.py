@@ -27,12 +27,14 @@ from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, episode_metrics,
                                                  LANDING_LIMIT, PLACE_LIMIT, PLACE_SPEED_LIMIT,
-                                                 predicted_landing, RELEASE_POSITION_LIMIT,
+                                                 PLACE_TILT_LIMIT, predicted_landing,
+                                                 RELEASE_POSITION_LIMIT,
                                                  RELEASE_VELOCITY_LIMIT, SLIP_LIMIT)
 from dual_arm_control.evaluation.plots import save_figure
 from dual_arm_control.inprocess import run_episode
-from dual_arm_control.scenario import (load_scenario, PLACE_TASKS, sample_trial,
-                                       scenario_document, scenario_path, TOSS_TASKS)
+from dual_arm_control.scenario import (load_scenario, PLACE_TASKS, scenario_document,
+                                       scenario_path, TOSS_TASKS)
+from dual_arm_control.trial_sampling import sample_trial
 import matplotlib
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402, I100  (the backend is chosen before pyplot loads)
@@ -199,6 +201,11 @@ def _exceeds(key, value, limit, unit):
 def failure_reason(task, metrics):
     """Return why a finished trial of task failed its success criteria (evaluation/episode.py)."""
     reasons = []
+    collisions = metrics.get('arm_collision_count')
+    if collisions:
+        first = metrics.get('first_arm_collision') or {}
+        reasons.append(f'{collisions} arm collisions (first: {" - ".join(first.get("geoms", []))} '
+                       f'at {first.get("t", float("nan")):.3f} s)')
     gap = metrics.get('contact_time_gap')
     if gap is None:
         reasons.append('no contact of both pads')
@@ -217,7 +224,8 @@ def failure_reason(task, metrics):
             reasons.append('no landing within the run')
     elif task in PLACE_TASKS:
         checks = [('place_position_error', PLACE_LIMIT, 'm'),
-                  ('place_speed', PLACE_SPEED_LIMIT, 'm/s')]
+                  ('place_speed', PLACE_SPEED_LIMIT, 'm/s'),
+                  ('box_tilt_at_place', PLACE_TILT_LIMIT, 'deg')]
     for key, limit, unit in checks:
         value = metrics.get(key)
         if value is not None and value > limit:
@@ -238,14 +246,18 @@ def randomized_values(scenario, trial):
     if spec.object_yaw > 0.0:
         values['object yaw offset [deg]'] = math.degrees(
             math.remainder(trial.object.yaw - scenario.object.yaw, 2.0 * math.pi))
-    if spec.mass is not None:
+    if spec.mass is not None or spec.object_types is not None:
         values['mass [kg]'] = trial.object.mass
     if spec.size_scale is not None:
         values['size scale [-]'] = trial.object.size[0] / scenario.object.size[0]
+    if spec.object_types is not None:
+        values['squeezed width [cm]'] = 100.0 * trial.object.size[1]
     if spec.friction is not None:
         values['friction [-]'] = trial.object.friction
     if spec.mocap_noise is not None:
         values['mocap noise [mm]'] = 1000.0 * trial.sensors.mocap.position_noise
+    if spec.mocap_latency is not None:
+        values['mocap latency [ms]'] = 1000.0 * trial.sensors.mocap.latency
     return values
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 # The place DS aims this far below the box's resting pose [m], so the table, not the release,
 # stops the box: it is put down while still held, then released at rest.
-PLACE_PRESS_DEPTH = 0.01
+PLACE_PRESS_DEPTH = 0.004
 
 
 def motion_config_for_scenario(scenario, cell, base=None):

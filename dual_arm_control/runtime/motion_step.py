@@ -7,8 +7,12 @@ generator and returns the tick's outputs; the same stamp again (a republished cy
 the same outputs; other cycles return None. A cycle stamped before the last tick means the clock
 went back (simulation reset): the role starts over as at start-up.
 
-An episode starts on request, or by itself at auto_start_ns once an object estimate exists. A
-tick whose inputs the generator refuses is answered with a stop command (zero velocity at the
+An episode starts on request, or by itself at auto_start_ns once an object estimate exists,
+and only if both arms can reach their grasp frames within their joint limits (core
+reachability, checked once at the start with the estimate; a shifted grasp is used when the
+centred one is out of reach). An unreachable grasp is refused with its reason: the arms stay in
+standby and the tick's phase carries the event 'unreachable'. A tick whose inputs the generator
+refuses is answered with a stop command (zero velocity at the
 current tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
 """
 
@@ -18,6 +22,7 @@ from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import (ArmCommand, ArmMeasurement,
                                                     DualArmMotionGenerator, ObjectMeasurement)
+from dual_arm_control.core.reachability import plan_grasp
 from dual_arm_control.runtime.inputs import RefusalCounter
 from dual_arm_control.runtime.signals import arm_command_from, PhaseSample, TwistSample
 from dual_arm_control.runtime.timing import estimate_at, TickSchedule
@@ -67,6 +72,7 @@ class MotionGeneratorStep:
         self._started = self._auto_start_ns == 0
         self._requests = dict.fromkeys(COMMANDS, False)
         self._last_tick = None
+        self.grasp_plan = None
 
     @property
     def config(self):
@@ -127,6 +133,10 @@ class MotionGeneratorStep:
         start = self._requests['start'] or (not self._started and has_object
                                             and stamp_ns >= self._auto_start_ns)
         self._started = self._started or start
+        refused_start = ''
+        if start and has_object:
+            refused_start = self._plan_grasp(joints, estimate, stamp_ns)
+            start = not refused_start
         try:
             output = self._generator.step(arms, _object_measurement(estimate, stamp_ns, arms),
                                           dt, start_episode=start,
@@ -139,15 +149,34 @@ class MotionGeneratorStep:
         self._requests = dict.fromkeys(COMMANDS, False)
         phase = output.phase
         reason = '' if phase.transition is None else phase.transition.reason
+        events = phase.events
+        if refused_start:
+            events, reason = tuple(events) + ('unreachable',), refused_start
         self._last_tick = MotionTick(
             stamp_ns=stamp_ns,
             commands={arm: arm_command_from(stamp_ns, output.commands[arm]) for arm in ARMS},
             desired_twist=TwistSample(stamp_ns, np.asarray(output.object_velocity, float),
                                       np.asarray(output.object_angular_velocity, float)),
             phase=PhaseSample(stamp_ns, phase.phase, phase.task, phase.time_in_phase,
-                              phase.events, reason),
+                              events, reason),
             output=output)
         return self._last_tick
+
+    def _plan_grasp(self, joints, estimate, stamp_ns):
+        """Check the grasp before the reach; use its shift, or return why it is refused."""
+        config = self._generator.config
+        if not config.reachability.enabled:
+            return ''
+        position, rotation, _, _ = estimate_at(estimate, stamp_ns)
+        self.grasp_plan = plan_grasp(
+            self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
+            np.asarray(config.object_size), config.reachability)
+        if not self.grasp_plan.reachable:
+            reason = f'grasp out of reach: {self.grasp_plan.reason}'
+            self.refusals.refuse('unreachable_grasp', reason)
+            return reason
+        self._generator.set_grasp_offset((self.grasp_plan.shift, 0.0, 0.0))
+        return ''
 
 
 def _object_measurement(estimate, stamp_ns, arms):

@@ -1,0 +1,161 @@
+"""
+Reachability of a grasp: whether each arm can put its pad on its face within its joint limits.
+
+The reach DS (eqs. 1-6) drives the tools to the grasp frames whatever the arms can do; a grasp
+frame an arm cannot reach with margin to its joint limits ends with the arm on a limit, its
+pad misaligned with the face and the box pushed away by one pad. plan_grasp checks the grasp
+frames with inverse kinematics before the reach starts, shifting the grasp points along the
+faces (toward +x of the object, away from the arms' bases, as far as the pad stays on the face)
+when the centred ones are out of reach, and says why when no shift helps.
+"""
+
+from dataclasses import dataclass
+import math
+
+from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.geometry import rotation_log
+from dual_arm_control.core.grasp import grasp_frame
+from dual_arm_control.core.validation import check_range
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ReachabilityConfig:
+    """
+    Inverse-kinematics check of the grasp frames (SI units).
+
+    Fields: enabled: check before the reach (False: reach whatever the arms can do);
+    pad_half_length m > 0, half the pad's extent along the face (object x); joint_margin
+    rad >= 0, kept from every joint limit; position_tolerance m > 0 and
+    orientation_tolerance rad > 0, the largest residual of a reachable pose; max_iterations,
+    of the damped least-squares solve; max_step rad > 0, the largest joint step of one
+    iteration; damping (m or rad)^2 > 0, its regularisation;
+    shift_steps >= 1, the number of grasp shifts tried beyond the centred grasp; edge_margin
+    m >= 0, kept between the pad's end and the face's edge.
+    """
+
+    enabled: bool = True
+    pad_half_length: float = 0.075
+    joint_margin: float = 0.0
+    position_tolerance: float = 0.005
+    orientation_tolerance: float = 0.05
+    max_iterations: int = 300
+    max_step: float = 0.2
+    damping: float = 1e-4
+    shift_steps: int = 2
+    edge_margin: float = 0.01
+
+    def __post_init__(self):
+        if not isinstance(self.enabled, (bool, np.bool_)):
+            raise ConfigError(f'enabled must be true or false, got {self.enabled!r}')
+        check_range('pad_half_length', self.pad_half_length, 0.0, 0.5, 'm', low_open=True)
+        check_range('joint_margin', self.joint_margin, 0.0, 0.5, 'rad')
+        check_range('position_tolerance', self.position_tolerance, 0.0, 0.1, 'm',
+                    low_open=True)
+        check_range('orientation_tolerance', self.orientation_tolerance, 0.0, 1.0, 'rad',
+                    low_open=True)
+        check_range('max_iterations', self.max_iterations, 1, 10000, '')
+        check_range('max_step', self.max_step, 0.0, 1.0, 'rad', low_open=True)
+        check_range('damping', self.damping, 0.0, 1.0, '', low_open=True)
+        check_range('shift_steps', self.shift_steps, 0, 10, '')
+        check_range('edge_margin', self.edge_margin, 0.0, 0.5, 'm')
+
+
+@dataclass(frozen=True)
+class PoseSolution:
+    """An inverse-kinematics result: q (7,) [rad], residuals [m] and [rad], reachable."""
+
+    q: np.ndarray
+    position_error: float
+    orientation_error: float
+    reachable: bool
+
+
+@dataclass(frozen=True)
+class GraspPlan:
+    """
+    The grasp to reach: shift [m] of both grasp points along the object's x axis.
+
+    reachable: both arms reach their grasp frames; reason: why not (empty when reachable);
+    solutions {arm: PoseSolution} of the chosen (or, unreachable, the centred) grasp.
+    """
+
+    shift: float
+    reachable: bool
+    reason: str
+    solutions: dict
+
+
+def inverse_kinematics(model, p_world_target, R_world_target, q_start, config):
+    """
+    Return the PoseSolution of the tool pose (p, R) for an ArmModel, from q_start.
+
+    Damped least squares on the world-aligned tool Jacobian within the joint limits narrowed
+    by joint_margin: a joint on a bound that the step would push further is taken out of the
+    Jacobian and the step recomputed with the others (an active set), so the remaining joints
+    make up for it instead of the solve stalling against the bound.
+    """
+    lower, upper = model.position_limits
+    lower, upper = lower + config.joint_margin, upper - config.joint_margin
+    q = np.clip(np.asarray(q_start, dtype=float), lower, upper)
+    regulariser = config.damping * np.eye(6)
+    for _ in range(config.max_iterations):
+        p_world_tool, R_world_tool = model.tool_pose(q)
+        error = np.concatenate((p_world_target - p_world_tool,
+                                rotation_log(R_world_target @ R_world_tool.T)))
+        if (np.linalg.norm(error[:3]) < 0.1 * config.position_tolerance
+                and np.linalg.norm(error[3:]) < 0.1 * config.orientation_tolerance):
+            break
+        jacobian = model.tool_jacobian(q)
+        free = np.ones(q.size, dtype=bool)
+        for _ in range(q.size):
+            active = jacobian * free
+            step = active.T @ np.linalg.solve(active @ active.T + regulariser, error)
+            blocked = free & (((q <= lower) & (step < 0.0)) | ((q >= upper) & (step > 0.0)))
+            if not blocked.any():
+                break
+            free &= ~blocked
+        norm = float(np.linalg.norm(step))
+        if norm > config.max_step:
+            step *= config.max_step / norm
+        q = np.clip(q + step, lower, upper)
+    p_world_tool, R_world_tool = model.tool_pose(q)
+    position_error = float(np.linalg.norm(p_world_target - p_world_tool))
+    orientation_error = float(np.linalg.norm(rotation_log(R_world_target @ R_world_tool.T)))
+    return PoseSolution(q, position_error, orientation_error,
+                        position_error <= config.position_tolerance
+                        and orientation_error <= config.orientation_tolerance)
+
+
+def grasp_shifts(size, config):
+    """Return the grasp shifts [m] to try, centred first, up to where the pad nears the edge."""
+    largest = max(0.5 * float(size[0]) - config.pad_half_length - config.edge_margin, 0.0)
+    if largest == 0.0 or config.shift_steps == 0:
+        return (0.0,)
+    return tuple(largest * step / config.shift_steps for step in range(config.shift_steps + 1))
+
+
+def plan_grasp(models, q_current, p_world_object, R_world_object, size, config):
+    """
+    Return the GraspPlan of a box (pose, size (3,) [m]) for both arms ({arm: ArmModel}).
+
+    Each shift of grasp_shifts is tried in order from the arms' current joint positions
+    q_current {arm: (7,)}; the first one both arms reach is the plan.
+    """
+    first = None
+    for shift in grasp_shifts(size, config):
+        solutions = {}
+        for arm in ARMS:
+            frame = grasp_frame(arm, p_world_object, R_world_object, size, (shift, 0.0, 0.0))
+            solutions[arm] = inverse_kinematics(models[arm], frame.p_world_grasp,
+                                                frame.R_world_grasp, q_current[arm], config)
+        if all(solution.reachable for solution in solutions.values()):
+            return GraspPlan(shift, True, '', solutions)
+        first = first or solutions
+    unreachable = [arm for arm in ARMS if not first[arm].reachable]
+    reason = '; '.join(
+        f'{arm} arm misses its grasp frame by {1000.0 * first[arm].position_error:.0f} mm, '
+        f'{math.degrees(first[arm].orientation_error):.0f} deg within its joint limits '
+        f'(margin {config.joint_margin:g} rad)' for arm in unreachable)
+    return GraspPlan(0.0, False, reason, first)

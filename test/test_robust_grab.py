@@ -1,0 +1,161 @@
+"""
+The pieces of a grab that holds beyond the nominal scene.
+
+Object types drawn from the catalogue, arm collisions counted from MuJoCo contacts, the run-in
+kept above the support, the grip force sized to the box, the object's inertial feed-forward,
+and the grasp-reachability check before the reach.
+"""
+
+import math
+
+from dual_arm_control.catalogue import load_catalogue
+from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.impact import clearance_limited_direction, ImpactConfig
+from dual_arm_control.core.reachability import (grasp_shifts, plan_grasp,
+                                                ReachabilityConfig)
+from dual_arm_control.core.wrench_distribution import (grip_normal_force, qp_config_for_mass,
+                                                       WrenchDistributorConfig)
+from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.evaluation.episode import episode_metrics
+from dual_arm_control.evaluation.metrics import tilt_degrees
+from dual_arm_control.scenario import load_scenario
+from dual_arm_control.trial_sampling import sample_trial
+import numpy as np
+import pytest
+from sim_bridge.twin import DualArmTwin
+import yaml
+
+
+@pytest.fixture(scope='module')
+def cell():
+    return load_cell()
+
+
+def yaw_rotation(yaw):
+    return np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
+                     [0.0, 0.0, 1.0]])
+
+
+def test_object_types_are_drawn_from_the_catalogue(cell):
+    scenario = load_scenario('catalogue_random', cell)
+    catalogue = load_catalogue()
+    trials = [sample_trial(scenario, index, cell) for index in range(200)]
+    assert {trial.object.type for trial in trials} == set(scenario.randomization.object_types)
+    pallet_top = cell.surface_height(*scenario.object.position[:2])
+    for trial in trials:
+        entry = catalogue[trial.object.type]
+        assert trial.object.size.tolist() == pytest.approx(list(entry.size), abs=1e-15)
+        assert trial.object.mass == entry.mass
+        assert 0.6 <= trial.object.friction <= 1.0
+        assert 0.0 <= trial.sensors.mocap.latency <= 0.010
+        assert trial.object.position[2] == pytest.approx(pallet_top + entry.size[2] / 2,
+                                                         abs=1e-9)
+    latencies = [trial.sensors.mocap.latency for trial in trials]
+    assert min(latencies) < 0.001 and max(latencies) > 0.009
+    # The draws added with object types do not move the earlier ones: the same file without
+    # them gives the same offsets, yaw and noise seed.
+    plain = load_scenario('paper_toss_random', cell)
+    assert sample_trial(plain, 3, cell).seed == sample_trial(
+        load_scenario('paper_toss_random', cell), 3, cell).seed
+
+
+def test_unknown_object_type_names_file_and_key(tmp_path, cell):
+    data = yaml.safe_load(open(load_scenario('catalogue_random', cell).path))
+    data['randomization']['object_types'] = ['paper_cube', 'crate']
+    path = tmp_path / 'bad.yaml'
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match="randomization.object_types.*'crate'"):
+        load_scenario(path, cell)
+
+
+def test_arm_driven_into_the_pallet_counts_collisions(cell):
+    """A pad pressed down onto the pallet is an arm collision; the hold run has none."""
+    scenario = load_scenario('hold', cell)
+    twin = DualArmTwin(scenario, cell)
+    model = arm_model('left', cell)
+    while twin.time < 0.5 - 1e-9:
+        twin.step({arm: twin.hold_torques(arm) for arm in twin.arms})
+    assert twin.arm_collisions == ()
+    collisions = []
+    while twin.time < 3.0 - 1e-9 and not collisions:
+        q = twin.joint_state('left').position
+        push = model.tool_jacobian(q)[:3].T @ np.array([0.0, 0.0, -60.0])
+        torques = {arm: twin.hold_torques(arm) for arm in twin.arms}
+        torques['left'] = torques['left'] + push
+        collisions += twin.step(torques).arm_collisions
+    assert collisions, 'the left arm pushed down for 2.5 s without touching anything'
+    assert any(name.startswith('left/') for name in collisions[0].geoms)
+    assert twin.arm_collisions == tuple(collisions)
+
+
+def test_nominal_toss_has_no_arm_collision_and_a_tilt_metric(cell):
+    from dual_arm_control.inprocess import run_episode
+    scenario = load_scenario('paper_toss', cell)
+    metrics = episode_metrics(scenario, run_episode(scenario, cell=cell).trajectory, cell)
+    assert metrics['arm_collision_count'] == 0
+    assert metrics['first_arm_collision'] is None
+    assert metrics['success']
+
+
+def test_tilt_of_a_box_on_its_side_is_ninety_degrees():
+    assert tilt_degrees([0.0, 0.0, 0.0, 1.0]) == pytest.approx(0.0)
+    half = math.sqrt(0.5)
+    assert tilt_degrees([half, 0.0, 0.0, half]) == pytest.approx(90.0)
+    assert tilt_degrees([0.0, 0.0, half, half]) == pytest.approx(0.0)
+
+
+def test_run_in_clears_the_support():
+    config = ImpactConfig()
+    rho = config.region.transitory_distance
+    rising = np.array([0.6, -0.6, 0.5]) / np.linalg.norm([0.6, -0.6, 0.5])
+    for height in (0.08, 0.10, 0.13, 0.5):
+        direction = clearance_limited_direction(rising, height, config)
+        assert np.linalg.norm(direction) == pytest.approx(1.0)
+        lowest_pad_point = height - rho * direction[2] - config.pad_half_height
+        assert lowest_pad_point >= config.support_clearance - 1e-12 or direction[2] == 0.0
+        assert direction[0] / direction[1] == pytest.approx(rising[0] / rising[1])
+    assert clearance_limited_direction(rising, 1.0, config) is not None
+    np.testing.assert_array_equal(clearance_limited_direction(rising, 1.0, config), rising)
+    falling = np.array([0.0, -0.8, -0.6])
+    np.testing.assert_array_equal(clearance_limited_direction(falling, 0.05, config), falling)
+    assert clearance_limited_direction(rising, 0.05, config)[2] == 0.0
+
+
+def test_grip_force_holds_the_heaviest_box_under_the_design_acceleration():
+    config = WrenchDistributorConfig()
+    for mass in (0.7, 3.0, 6.0):
+        qp = qp_config_for_mass(config, mass)
+        load = mass * (config.object.gravity + config.design_acceleration)
+        # Two pads, each carrying mu / sqrt(2) f_z along one tangent, with the safety factor.
+        capacity = 2.0 * qp.friction_coefficient / math.sqrt(2.0) * qp.min_normal_force
+        assert capacity >= config.grip_safety_factor * load - 1e-9
+        assert qp.min_normal_force <= qp.squeeze_force <= qp.max_normal_force
+    assert qp_config_for_mass(config, 0.7) == config.qp
+    assert grip_normal_force(6.0, 0.9, 6.0, 9.81, 1.2) == pytest.approx(
+        1.2 * 6.0 * 15.81 / (math.sqrt(2.0) * 0.9))
+
+
+def test_nominal_grasp_is_reachable_and_a_close_yawed_one_is_refused(cell):
+    models = {arm: arm_model(arm, cell) for arm in ('left', 'right')}
+    home = {arm: cell.arm(arm).q_home for arm in models}
+    config = ReachabilityConfig()
+    size = np.array([0.2, 0.2, 0.2])
+    nominal = plan_grasp(models, home, np.array([0.41, 0.0, 0.32]), np.eye(3), size, config)
+    assert nominal.reachable and nominal.shift == 0.0 and nominal.reason == ''
+    for arm, solution in nominal.solutions.items():
+        lower, upper = models[arm].position_limits
+        assert np.all(solution.q >= lower) and np.all(solution.q <= upper)
+        assert solution.position_error <= config.position_tolerance
+    # 25 deg of yaw with the box 6 cm closer turns the left face toward the left base: its
+    # wrist would have to sit closer to the shoulder than the elbow (A4, +-120 deg) can fold.
+    close = plan_grasp(models, home, np.array([0.35, 0.0, 0.32]), yaw_rotation(math.radians(25)),
+                       size, config)
+    assert not close.reachable
+    assert 'left arm misses its grasp frame' in close.reason
+
+
+def test_grasp_shifts_keep_the_pad_on_the_face():
+    config = ReachabilityConfig()
+    shifts = grasp_shifts([0.26, 0.26, 0.26], config)
+    assert shifts[0] == 0.0 and shifts[-1] == pytest.approx(0.13 - 0.075 - config.edge_margin)
+    assert grasp_shifts([0.16, 0.16, 0.16], config) == (0.0,)
