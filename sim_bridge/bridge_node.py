@@ -33,7 +33,6 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError
-from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
 from dual_arm_control.nodes.diagnostics import diagnostic_value
 from dual_arm_control.nodes.messages import (fill_joint_state, fill_pose, fill_wrench, stamp_ns,
                                              time_msg)
@@ -43,6 +42,7 @@ from dual_arm_control.runtime.fri import FriCycle, REFUSAL_REASONS
 from dual_arm_control.runtime.node_settings import node_table
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import load_scenario
+from dual_arm_control.trajectory_log import TrajectoryRecorder
 import numpy as np
 import rclpy
 from rclpy.clock import Clock, ClockType

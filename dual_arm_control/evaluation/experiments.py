@@ -32,10 +32,10 @@ from dual_arm_control.evaluation.experiment_metrics import (
     cumulative_energy, energy_without_gravity, landing_targets, longest_toss, positive_work,
     reduction_percent, statistics)
 from dual_arm_control.evaluation.paper_results import EXPERIMENTS, RESULTS_FILE
-from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.inprocess import run_episode, RunnerConfig
 from dual_arm_control.scenario import load_scenario, ReleaseConfig, scenario_path, Speeds
+from dual_arm_control.trajectory_log import load_trajectory
 import numpy as np
 
 # Experiment 2: the tosses (release at paper_toss's release position) and the workspace model.
