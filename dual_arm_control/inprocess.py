@@ -19,7 +19,6 @@ from dual_arm_control.core.passive_control import PassiveControllerConfig
 from dual_arm_control.core.tracker import TrackerConfig
 from dual_arm_control.core.wrench_distribution import WrenchDistributorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.runtime.controller_step import ControllerStep
@@ -29,6 +28,7 @@ from dual_arm_control.runtime.node_settings import COMMAND_TIMEOUT, DS_PERIOD, F
 from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.runtime.tracker_step import TrackerStep
 from dual_arm_control.runtime.wrench_step import WrenchStep
+from dual_arm_control.trajectory_log import TrajectoryRecorder
 from sim_bridge.twin import DualArmTwin
 
 

@@ -18,8 +18,8 @@ import tempfile
 import time
 
 from dual_arm_control.bringup import node_command
-from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import hold_graph
+from dual_arm_control.trajectory_log import load_trajectory
 
 CLOCK_TICKS_PER_SECOND = os.sysconf('SC_CLK_TCK')
 STOP_GRACE_PERIOD = 5.0

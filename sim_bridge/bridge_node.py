@@ -30,25 +30,24 @@ import math
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError
-from dual_arm_control.evaluation.trajectory import TrajectoryRecorder
-from dual_arm_control.nodes.diagnostics import diagnostic_value
-from dual_arm_control.nodes.messages import (fill_joint_state, fill_pose, fill_wrench, stamp_ns,
-                                             time_msg)
+from dual_arm_control.nodes.messages import stamp_ns
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import NodeParameters
-from dual_arm_control.runtime.fri import FriCycle, REFUSAL_REASONS
+from dual_arm_control.runtime.fri import FriCycle
 from dual_arm_control.runtime.node_settings import node_table
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import load_scenario
+from dual_arm_control.trajectory_log import TrajectoryRecorder
 import numpy as np
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sim_bridge.ground_truth import GroundTruthStreams, Stream
+from sim_bridge.bridge_diagnostics import counter_values, diagnostics_message
+from sim_bridge.ground_truth import GroundTruthStreams
 from sim_bridge.lockstep_start import GraphReadiness
+from sim_bridge.robot_streams import RobotStreams
 from sim_bridge.twin import DualArmTwin
 from std_srvs.srv import Trigger
 
@@ -119,13 +118,8 @@ class SimBridge(Node):
             f'{self.stop_time:g} s, ground truth {"on" if self._publish_ground_truth else "off"}')
 
     def _create_interfaces(self):
-        self._clock_stream = Stream(self, contract.CLOCK)
-        self._mocap = Stream(self, contract.MOCAP_OBJECT_POSE, frame_id=contract.WORLD_FRAME)
+        self._robot = RobotStreams(self)
         self._diagnostics_pub = create_topic_publisher(self, contract.DIAGNOSTICS)
-        self._joint_states = {arm: Stream(self, contract.JOINT_STATES, arm)
-                              for arm in contract.ARMS}
-        self._ft = {arm: Stream(self, contract.FT_WRENCH, arm, frame_id=f'{arm}_ft_sensor')
-                    for arm in contract.ARMS}
         self._truth = GroundTruthStreams(self)
         for arm in contract.ARMS:
             self.create_subscription(contract.TORQUE_COMMAND.msg_type,
@@ -140,8 +134,7 @@ class SimBridge(Node):
 
     def _streams(self):
         """Return every stream the bridge publishes each cycle."""
-        return [self._clock_stream, self._mocap, *self._joint_states.values(), *self._ft.values(),
-                *self._truth.streams()]
+        return [*self._robot.streams(), *self._truth.streams()]
 
     def _on_setting(self, name, value):
         """Apply the runtime-changeable parameters."""
@@ -284,9 +277,7 @@ class SimBridge(Node):
         self._publish_cycle_state()
 
     def _publish_mocap(self):
-        for sample in self._cycle.mocap:
-            fill_pose(self._mocap.msg, sample)
-            self._mocap.publish()
+        self._robot.publish_mocap(self._cycle)
         self._last_publish_wall = time.monotonic()
 
     def _publish_cycle_state(self):
@@ -302,20 +293,12 @@ class SimBridge(Node):
 
     def _publish_joint_states(self):
         """Publish /clock and the joint states of the awaited cycle (again)."""
-        self._clock_stream.msg.clock = time_msg(self._cycle.stamp_ns)
-        self._clock_stream.publish()
-        for arm in contract.ARMS:
-            fill_joint_state(self._joint_states[arm].msg, contract.joint_names(arm),
-                             self._cycle.joints[arm])
-            self._joint_states[arm].publish()
+        self._robot.publish_joint_states(self._cycle)
         self._last_publish_wall = time.monotonic()
 
     def _publish_ft(self):
-        if not self._ft_due:
-            return
-        for arm in contract.ARMS:
-            fill_wrench(self._ft[arm].msg, self._cycle.ft_wrenches[arm])
-            self._ft[arm].publish()
+        if self._ft_due:
+            self._robot.publish_ft(self._cycle)
 
     def _warn_throttled(self, key, message):
         now = time.monotonic()
@@ -325,29 +308,13 @@ class SimBridge(Node):
 
     def diagnostic_values(self):
         """Return {status name: {key: value}} of the counters (also saved in the log)."""
-        wall = time.monotonic() - self._first_cycle_wall if self._first_cycle_wall else 0.0
-        bridge = {'mode': self.mode, 'sim_time': self.twin.time, 'cycles': self.fri.cycles,
-                  'late_cycles': self.late_cycles,
-                  'real_time_factor': self.twin.time / wall if wall > 0.0 else 0.0}
-        values = {'sim_bridge': bridge}
-        for arm in contract.ARMS:
-            values[f'sim_bridge: {arm} arm'] = self.fri.counters[arm].as_dict()
-        return values
+        return counter_values(self.mode, self.twin, self.fri, self.late_cycles,
+                              self._first_cycle_wall)
 
     def _publish_diagnostics(self):
         """Publish the counters; an arm is WARN once anything was refused, clamped or held."""
-        msg = DiagnosticArray()
-        msg.header.stamp = time_msg(self._cycle.stamp_ns)
-        for name, values in self.diagnostic_values().items():
-            status = DiagnosticStatus(name=name, hardware_id='sim_bridge')
-            trouble = (values.get('watchdog_holds', 0) + values.get('torque_clamps', 0)
-                       + sum(values.get(f'refused_{r}', 0) for r in REFUSAL_REASONS))
-            status.level = DiagnosticStatus.WARN if trouble else DiagnosticStatus.OK
-            status.message = 'commands refused, clamped or missing' if trouble else 'ok'
-            status.values = [KeyValue(key=key, value=diagnostic_value(value))
-                             for key, value in values.items()]
-            msg.status.append(status)
-        self._diagnostics_pub.publish(msg)
+        self._diagnostics_pub.publish(diagnostics_message(self.diagnostic_values(),
+                                                          self._cycle.stamp_ns))
 
     # -- services --------------------------------------------------------------------------------
 

@@ -22,10 +22,10 @@ from dual_arm_control.bags.info import inspect_bag, main as bag_info_main
 from dual_arm_control.bags.schema import first_field_type, message_definition, type_name
 from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, METADATA_NAME,
                                           split_path)
-from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import full_graph, RECORDER_NODE
 from dual_arm_control.nodes.process import PUBLISHED_COUNTS_PREFIX
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
+from dual_arm_control.trajectory_log import load_trajectory
 from graph_helpers import GraphProbe, record_episode, ros_environment
 from mcap.exceptions import McapError
 from mcap.reader import make_reader

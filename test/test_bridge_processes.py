@@ -10,8 +10,8 @@ import signal
 
 from dual_arm_control import contract
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.scenario import load_scenario
+from dual_arm_control.trajectory_log import load_trajectory
 from graph_helpers import GraphProbe, ProcessGroup
 import numpy as np
 import pytest

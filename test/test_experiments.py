@@ -7,7 +7,8 @@ from dual_arm_control.core.ballistics import (landing_without_drag,
                                               release_velocity_minimum_speed)
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.evaluation import experiment_metrics, experiments, report, workspace
+from dual_arm_control.evaluation import experiment_metrics, experiment_tosses, experiments
+from dual_arm_control.evaluation import paper_results, report, workspace
 import numpy as np
 import pytest
 
@@ -178,9 +179,9 @@ def test_landing_targets_lie_on_the_table_and_within_the_release_speed():
     release = np.array([0.68, 0.0, 0.45])
     size = (0.2, 0.2, 0.2)
     targets = experiment_metrics.landing_targets(
-        cell, size, release, experiments.TARGET_X, experiments.TARGET_Y,
-        experiments.MAX_RELEASE_SPEED)
-    assert len(targets) == len(experiments.TARGET_X) * len(experiments.TARGET_Y)
+        cell, size, release, experiment_tosses.TARGET_X, experiment_tosses.TARGET_Y,
+        experiment_tosses.MAX_RELEASE_SPEED)
+    assert len(targets) == len(experiment_tosses.TARGET_X) * len(experiment_tosses.TARGET_Y)
     table = cell.front_table
     for target in targets:
         for dx in (-0.1, 0.1):
@@ -188,10 +189,10 @@ def test_landing_targets_lie_on_the_table_and_within_the_release_speed():
                 assert table.covers(target[0] + dx, target[1] + dy)
         assert target[2] == pytest.approx(table.top_height + 0.1)
         speed = release_velocity_minimum_speed(release, target).speed
-        assert speed <= experiments.MAX_RELEASE_SPEED
+        assert speed <= experiment_tosses.MAX_RELEASE_SPEED
     # Off the table edge (x 0.62 + half box) or too far for 1.05 m/s: dropped.
     kept = experiment_metrics.landing_targets(cell, size, release, (0.70, 0.80, 1.20), (0.0,),
-                                              experiments.MAX_RELEASE_SPEED)
+                                              experiment_tosses.MAX_RELEASE_SPEED)
     assert kept[:, 0].tolist() == [0.80]
 
 
@@ -239,7 +240,7 @@ def _synthetic_results(root):
                   'trials_per_hour': 240.0}
     for name, data in (('fast_toss', fast), ('place_vs_toss', pvt)):
         (root / name).mkdir(parents=True)
-        (root / name / experiments.RESULTS_FILE).write_text(json.dumps(data))
+        (root / name / paper_results.RESULTS_FILE).write_text(json.dumps(data))
     (root / 'robustness').mkdir()
     (root / 'robustness' / 'summary.json').write_text(json.dumps(robustness))
     (root / 'robustness' / 'success.png').write_bytes(b'png')
@@ -270,7 +271,7 @@ def test_report_renders_the_numbers_from_the_json_files(tmp_path):
 
 def test_report_of_an_empty_results_directory(tmp_path):
     text = report.render_report(report.load_results(tmp_path))
-    assert text.count('Not run') == len(experiments.EXPERIMENTS) + 1
+    assert text.count('Not run') == len(paper_results.EXPERIMENTS) + 1
 
 
 def test_command_line_refuses_bad_values(capsys):
@@ -283,7 +284,7 @@ def test_command_line_refuses_bad_values(capsys):
 
 def test_one_toss_to_target_run_writes_results_and_plot(tmp_path):
     assert experiments.main(['toss_to_target', '--limit', '1', '--out', str(tmp_path)]) == 0
-    results = json.loads((tmp_path / experiments.RESULTS_FILE).read_text())
+    results = json.loads((tmp_path / paper_results.RESULTS_FILE).read_text())
     assert results['limited'] and len(results['targets']) == 1
     row = results['targets'][0]
     assert row['target'] == pytest.approx([0.74, -0.10, 0.25])

@@ -116,7 +116,7 @@ def test_criteria_refuse_out_of_range_values():
 
 def synthetic_grasp_log(left_contact_index, right_contact_index, samples=1000):
     """Return a trajectory log at rest where each pad touches from its index on."""
-    from dual_arm_control.evaluation.trajectory import ARM_FIELDS, OBJECT_FIELDS
+    from dual_arm_control.trajectory_log import ARM_FIELDS, OBJECT_FIELDS
     t = 0.3 + DT * np.arange(samples)
     data = {'t': t}
     for name in OBJECT_FIELDS:

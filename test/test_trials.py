@@ -17,7 +17,8 @@ from conftest import SOURCE_ROOT
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import episode_metrics, METRIC_KEYS
-from dual_arm_control.evaluation.trials import failure_reason, main, summarize
+from dual_arm_control.evaluation.trial_summary import failure_reason, summarize
+from dual_arm_control.evaluation.trials import main
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.randomization import Randomization
 from dual_arm_control.scenario import load_scenario, scenario_document

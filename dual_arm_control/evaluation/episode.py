@@ -14,10 +14,10 @@ from dual_arm_control.core.motion_generator import (impact_directions, object_mo
                                                     support_height_below)
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
-from dual_arm_control.evaluation.trajectory import load_trajectory
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.scenario import load_scenario, PLACE_TASKS, TOSS_TASKS
+from dual_arm_control.trajectory_log import load_trajectory
 import numpy as np
 
 METRIC_KEYS = (

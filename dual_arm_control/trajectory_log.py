@@ -1,8 +1,9 @@
 """
 Ground-truth trajectory of an episode: what the simulator really did, one row per FRI cycle.
 
-Written by the bridge (or any runner stepping the twin) and read by the metrics. Stored as a
-compressed .npz; keys are documented in TRAJECTORY_FIELDS.
+Written by the bridge (or any runner stepping the twin) and read by the metrics; it lives outside
+evaluation/ so the bridge writes it without depending on the evaluation layer. Stored as a
+compressed .npz; keys are documented in ARM_FIELDS, OBJECT_FIELDS and COUNTER_FIELDS.
 """
 
 from pathlib import Path

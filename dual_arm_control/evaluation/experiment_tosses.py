@@ -1,0 +1,256 @@
+"""
+The paper's tossing experiments: 1 fast_toss, 2 toss_workspace and 5 toss_to_target.
+
+fast_toss runs paper_toss on the node graph (dual_arm_bringup, lockstep; Figures 6-7),
+toss_workspace compares many tosses' landings with the joint reachable space (Figure 8),
+toss_to_target measures the landing error over a grid of targets on the front table. Each
+writes OUT/results.json and its plots.
+"""
+
+from dataclasses import replace
+import json
+import math
+from pathlib import Path
+import subprocess
+import tempfile
+import time
+
+from dual_arm_control.contract import ARMS
+from dual_arm_control.core.ballistics import (centre_landing_height,
+                                              release_velocity_minimum_speed)
+from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.evaluation import experiment_plots as plots
+from dual_arm_control.evaluation import metrics as episode_tools
+from dual_arm_control.evaluation import workspace
+from dual_arm_control.evaluation.episode import LANDING_LIMIT
+from dual_arm_control.evaluation.experiment_metrics import (landing_targets, longest_toss,
+                                                            statistics)
+from dual_arm_control.evaluation.experiment_runs import (ExperimentError, results_header,
+                                                         run_inprocess_episode, write_results)
+from dual_arm_control.graph import EPISODE_START_TIME
+from dual_arm_control.scenario import load_scenario, ReleaseConfig, scenario_path
+from dual_arm_control.trajectory_log import load_trajectory
+import numpy as np
+
+# Experiment 2: the tosses (release at paper_toss's release position) and the workspace model.
+TOSS_SPEEDS = (0.6, 0.75, 0.9, 1.05)
+TOSS_ELEVATIONS_DEG = (15.0, 30.0, 45.0)
+TOSS_HEADINGS_DEG = (-30.0, -15.0, 0.0, 15.0, 30.0)
+WORKSPACE_SAMPLES = 2000000
+WORKSPACE_SEED = 7
+WORKSPACE_GRID = workspace.Grid(x0=0.0, y0=-1.0, cell=0.025, nx=56, ny=80)
+WORKSPACE_Z_BAND = (0.25, 0.75)
+WORKSPACE_SLAB = 0.10
+PAD_MAX_TILT_DEG = 30.0
+# Experiment 5: the landing-target grid over the front table.
+TARGET_X = (0.74, 0.79, 0.84, 0.89)
+TARGET_Y = (-0.10, 0.0, 0.10)
+MAX_RELEASE_SPEED = 1.05
+
+
+def _events(result):
+    """Return the first pad contact and the release instant of an episode's metrics."""
+    contacts = [result[f't_contact_{arm}'] for arm in ARMS
+                if result[f't_contact_{arm}'] is not None]
+    return {'contact': min(contacts, default=None), 'release': result['t_release']}
+
+
+def run_fast_toss(out_dir, limit=None, timeout=600.0):
+    """Experiment 1: paper_toss on the node graph (dual_arm_bringup, lockstep); Figures 6-7."""
+    from dual_arm_control.bringup import executable_command
+    started = time.monotonic()
+    cell = load_cell()
+    path = scenario_path('paper_toss')
+    with tempfile.TemporaryDirectory(prefix='fast_toss_') as tmp:
+        command = executable_command('dual_arm_bringup') + [
+            '--scenario', str(path), '--out', tmp, '--mode', 'lockstep', '--timeout',
+            str(timeout)]
+        graph_started = time.monotonic()
+        try:
+            completed = subprocess.run(command, capture_output=True, text=True,
+                                       timeout=timeout + 60.0)
+        except subprocess.TimeoutExpired:
+            raise ExperimentError(
+                f'dual_arm_bringup did not finish in {timeout + 60:g} s') from None
+        graph_wall = time.monotonic() - graph_started
+        metrics_path = Path(tmp) / 'metrics.json'
+        if completed.returncode not in (0, 1) or not metrics_path.is_file():
+            last = (completed.stderr.strip().splitlines() or ['no output'])[-1]
+            raise ExperimentError(f'dual_arm_bringup exited {completed.returncode}: {last}')
+        graph_metrics = json.loads(metrics_path.read_text())
+        data = load_trajectory(Path(tmp) / 'trajectory.npz')
+    data = dict(data, t=data['t'] - EPISODE_START_TIME)
+    scenario = load_scenario(path, cell=cell)
+    inprocess, _ = run_inprocess_episode(scenario, cell)
+    compared = ('t_contact_left', 't_contact_right', 't_release', 'cycle_time',
+                'release_position_error', 'landing_error')
+    differences = {key: abs(graph_metrics[key] - inprocess[key]) for key in compared
+                   if graph_metrics[key] is not None and inprocess[key] is not None}
+    events = _events(graph_metrics)
+    plots.figure6_tool_speeds(data, events, Path(out_dir) / 'fig6_tool_speeds.png')
+    plots.figure6_closeup(data, events, Path(out_dir) / 'fig6_closeup.png')
+    plots.figure7_object_motion(data, events, Path(out_dir) / 'fig7a_object_motion.png')
+    plots.figure7_trajectories(data, Path(out_dir) / 'fig7b_trajectories_3d.png')
+    grasped = np.zeros(len(data['t']), dtype=bool)
+    if graph_metrics['t_grasp'] is not None and graph_metrics['t_release'] is not None:
+        grasped = ((data['t'] >= graph_metrics['t_grasp'])
+                   & (data['t'] <= graph_metrics['t_release']))
+    object_speed = np.linalg.norm(data['object_velocity'][grasped], axis=1)
+    results = results_header('fast_toss', 'dual_arm_bringup (node graph, lockstep)', started, None)
+    results.update({
+        'scenario': 'paper_toss', 'graph_exit_code': completed.returncode,
+        'graph_wall_time': graph_wall, 'metrics': graph_metrics,
+        'desired_release': {'position': scenario.release.position.tolist(),
+                            'velocity': scenario.release.velocity.tolist()},
+        'peak_grasped_object_speed': float(object_speed.max()) if grasped.any() else None,
+        'inprocess_max_difference': differences,
+        'plots': ['fig6_tool_speeds.png', 'fig6_closeup.png', 'fig7a_object_motion.png',
+                  'fig7b_trajectories_3d.png']})
+    write_results(out_dir, results)
+    return results
+
+
+def toss_release_velocities(limit=None):
+    """Return [(speed [m/s], elevation [deg], heading [deg], velocity (3,))] of experiment 2."""
+    tosses = []
+    for speed in TOSS_SPEEDS:
+        for elevation in TOSS_ELEVATIONS_DEG:
+            for heading in TOSS_HEADINGS_DEG:
+                e, h = math.radians(elevation), math.radians(heading)
+                velocity = speed * np.array([math.cos(e) * math.cos(h),
+                                             math.cos(e) * math.sin(h), math.sin(e)])
+                tosses.append((speed, elevation, heading, velocity))
+    return tosses[:limit]
+
+
+def _flight(data, result, object_height, cell):
+    """Return the object's path (N, 3) from release to landing, every 10 ms."""
+    t = data['t']
+    release = int(np.searchsorted(t, result['t_release'] - 1e-9))
+    landed = episode_tools.landing_index(t, data['object_position'], release + 1,
+                                         0.5 * object_height, cell.surface_height)
+    end = len(t) if landed is None else landed + 1
+    return data['object_position'][release:end:5]
+
+
+def run_toss_workspace(out_dir, limit=None):
+    """Experiment 2: landings of many tosses against the joint reachable space; Figure 8."""
+    started = time.monotonic()
+    cell = load_cell()
+    base = load_scenario('paper_toss', cell=cell)
+    tosses, flights, landings = [], [], []
+    for speed, elevation, heading, velocity in toss_release_velocities(limit):
+        scenario = replace(base, release=ReleaseConfig(base.release.position, velocity),
+                           speeds=replace(base.speeds, toss=speed))
+        result, data = run_inprocess_episode(scenario, cell)
+        landing = result['landing_position']
+        valid = (result['t_grasp'] is not None and result['t_release'] is not None
+                 and landing is not None and cell.front_table.covers(*landing[:2]))
+        tosses.append({'speed': speed, 'elevation_deg': elevation, 'heading_deg': heading,
+                       'release_velocity_desired': velocity.tolist(), 'valid': valid,
+                       'success': result['success'], 'landing_position': landing,
+                       'release_position': result['release_position'],
+                       'release_velocity': result['release_velocity'],
+                       'release_position_error': result['release_position_error'],
+                       'release_velocity_error': result['release_velocity_error'],
+                       'landing_prediction_error': result.get('landing_prediction_error'),
+                       'max_slip': result['max_slip']})
+        if valid:
+            landings.append(landing[:2])
+            flights.append(_flight(data, result, base.object.size[2], cell))
+    samples = WORKSPACE_SAMPLES if limit is None else min(WORKSPACE_SAMPLES, 20000 * limit)
+    reachable = {arm: workspace.pad_facing_tool_positions(
+        arm_model(arm, cell), arm, samples, np.random.default_rng(WORKSPACE_SEED),
+        math.radians(PAD_MAX_TILT_DEG)) for arm in ARMS}
+    grid = WORKSPACE_GRID
+    joint = workspace.joint_reachable_mask(reachable['left'], reachable['right'],
+                                           0.5 * base.object.size[1], grid, WORKSPACE_Z_BAND,
+                                           WORKSPACE_SLAB)
+    hull = workspace.convex_hull(np.array(landings)) if landings else np.zeros((0, 2))
+    toss_mask = workspace.polygon_mask(hull, grid)
+    added, extension = workspace.extension_percent(joint, toss_mask)
+    xs, ys = grid.centres()
+    centre_row = joint[:, int(np.argmin(np.abs(ys)))]
+    release = base.release.position
+    drop = release[2] - centre_landing_height(cell.front_table.top_height, base.object.size[2])
+    speeds = sorted({toss[0] for toss in toss_release_velocities(limit)})
+    plots.figure8_top_view(grid, joint, toss_mask, added, hull, np.array(landings), cell,
+                           Path(out_dir) / 'fig8_top_view.png')
+    plots.figure8_trajectories(flights, reachable, cell, Path(out_dir) / 'fig8_trajectories.png',
+                               WORKSPACE_Z_BAND)
+    results = results_header('toss_workspace', 'in-process (dual_arm_control.inprocess)',
+                             started, limit)
+    results.update({
+        'tosses': tosses, 'toss_count': len(tosses), 'valid_count': len(landings),
+        'success_count': sum(1 for toss in tosses if toss['success']),
+        'release_position': base.release.position.tolist(),
+        'method': {'samples_per_arm': samples, 'seed': WORKSPACE_SEED,
+                   'kept_samples': {arm: len(reachable[arm]) for arm in ARMS},
+                   'pad_max_tilt_deg': PAD_MAX_TILT_DEG, 'z_band': list(WORKSPACE_Z_BAND),
+                   'slab_height': WORKSPACE_SLAB, 'half_width': 0.5 * base.object.size[1],
+                   'grid': {'x0': grid.x0, 'y0': grid.y0, 'cell': grid.cell, 'nx': grid.nx,
+                            'ny': grid.ny}},
+        'joint_area': workspace.mask_area(joint, grid),
+        'toss_area': workspace.mask_area(toss_mask, grid),
+        'toss_hull_area': workspace.polygon_area(hull),
+        'added_area': workspace.mask_area(added, grid),
+        'extension_percent': extension,
+        'joint_max_x_at_y0': float(xs[centre_row].max()) if centre_row.any() else None,
+        'longest_toss': longest_toss(speeds[-1], drop), 'fastest_toss': speeds[-1],
+        'farthest_landing': max((float(np.hypot(*(np.asarray(p) - release[:2])))
+                                 for p in landings), default=None),
+        'landing_extent': {'x': [float(min(p[0] for p in landings)),
+                                 float(max(p[0] for p in landings))] if landings else None,
+                           'y': [float(min(p[1] for p in landings)),
+                                 float(max(p[1] for p in landings))] if landings else None},
+        'plots': ['fig8_top_view.png', 'fig8_trajectories.png']})
+    write_results(out_dir, results)
+    return results
+
+
+def run_toss_to_target(out_dir, limit=None):
+    """Experiment 5: toss_to_target over a grid of landing targets on the front table."""
+    started = time.monotonic()
+    cell = load_cell()
+    base = load_scenario('paper_toss', cell=cell)
+    release_position = np.asarray(MotionGeneratorConfig().toss.release_position)
+    targets = landing_targets(cell, base.object.size, release_position, TARGET_X, TARGET_Y,
+                              MAX_RELEASE_SPEED)[:limit]
+    rows = []
+    for target in targets:
+        scenario = replace(base, task='toss_to_target', release=None, landing_target=target)
+        result, _ = run_inprocess_episode(scenario, cell)
+        solution = release_velocity_minimum_speed(release_position, target)
+        error = result['landing_error']
+        rows.append({
+            'target': target.tolist(), 'release_speed_planned': solution.speed,
+            'release_elevation_deg': math.degrees(solution.elevation),
+            'landing_position': result['landing_position'], 'landing_error': error,
+            'hit': error is not None and error <= LANDING_LIMIT, 'success': result['success'],
+            'release_position_error': result['release_position_error'],
+            'release_velocity_error': result['release_velocity_error'],
+            'landing_prediction_error': result.get('landing_prediction_error'),
+            'max_slip': result['max_slip'], 'contact_time_gap': result['contact_time_gap']})
+    plots.landing_errors(rows, cell, Path(out_dir) / 'landing_errors.png')
+    errors = [row['landing_error'] for row in rows]
+    shortfalls = [float(np.hypot(*(np.asarray(row['target'][:2]) - release_position[:2]))
+                        - np.hypot(*(np.asarray(row['landing_position'][:2])
+                                     - release_position[:2])))
+                  for row in rows if row['landing_position'] is not None]
+    results = results_header('toss_to_target', 'in-process (dual_arm_control.inprocess)',
+                             started, limit)
+    results.update({
+        'release_position': release_position.tolist(), 'targets': rows,
+        'landing_error': {**statistics(errors), 'max': max(
+            (e for e in errors if e is not None), default=None), 'missing': sum(
+            1 for e in errors if e is None)},
+        'shortfall': statistics(shortfalls),
+        'release_position_error': statistics([row['release_position_error'] for row in rows]),
+        'landing_prediction_error': statistics([row['landing_prediction_error']
+                                                for row in rows]),
+        'hit_count': sum(1 for row in rows if row['hit']),
+        'success_count': sum(1 for row in rows if row['success']), 'landing_limit': LANDING_LIMIT,
+        'max_release_speed': MAX_RELEASE_SPEED, 'plots': ['landing_errors.png']})
+    write_results(out_dir, results)
+    return results

@@ -1,0 +1,333 @@
+"""
+The sections of docs/results.md: the headline table and one section per experiment.
+
+Each section function takes the loaded results (report.load_results) and the link root of the
+plots and returns its Markdown lines; a missing results file gives a 'Not run' note.
+"""
+
+from dual_arm_control.evaluation.experiment_metrics import reduction_percent
+from dual_arm_control.evaluation.paper_results import PAPER_RESULTS
+from dual_arm_control.evaluation.report_format import (image_links, mean_std, MISSING, not_run,
+                                                       number, paper, plot_links, table,
+                                                       value_range)
+
+
+def _at_speed(place_vs_toss, speed=1.0):
+    """Return the place_vs_toss summary row at speed, or None."""
+    if place_vs_toss is None:
+        return None
+    rows = [row for row in place_vs_toss['summary'] if abs(row['speed'] - speed) < 1e-9]
+    return rows[0] if rows else None
+
+
+def headline_rows(results):
+    """Return the headline table rows: metric, ours, paper, paper source."""
+    fast = results['fast_toss']
+    metrics = fast['metrics'] if fast else {}
+    workspace = results['toss_workspace']
+    at_one = _at_speed(results['place_vs_toss'])
+    robustness = results['robustness']
+    targets = results['toss_to_target']
+    rows = [
+        ('impact speed, left / right arm (exp. 1)',
+         f'{number(metrics.get("impact_speed_left"))} / '
+         f'{number(metrics.get("impact_speed_right"), unit="m/s")}',
+         paper('impact_speed'), PAPER_RESULTS['impact_speed']['source']),
+        ('contact time gap between the pads (exp. 1)',
+         number(metrics.get('contact_time_gap'), 1, 1000.0, 'ms'),
+         'simultaneous (no number)', 'IV-A'),
+        ('release position error (exp. 1)',
+         number(metrics.get('release_position_error'), 1, 1000.0, 'mm'),
+         f'within {paper("release_position_tolerance")} tolerance',
+         PAPER_RESULTS['release_position_tolerance']['source']),
+        ('release velocity error, relative (exp. 1)',
+         number(metrics.get('release_velocity_error'), 1, 100.0, '%'), 'not reported', ''),
+        ('cycle-time reduction at 1.0 m/s, toss vs place (exp. 3)',
+         number(at_one and at_one['cycle_time_reduction_percent'], 1, unit='%'),
+         paper('time_reduction_1ms', 0), PAPER_RESULTS['time_reduction_1ms']['source']),
+        ('energy reduction at 1.0 m/s, toss vs place (exp. 3): ∫\\|τᵀq̇\\|dt (positive work; '
+         'beyond gravity)',
+         f'{number(at_one and at_one["energy_reduction_percent"], 1, unit="%")} '
+         f'({number(at_one and at_one["positive_work_reduction_percent"], 1, unit="%")}; '
+         f'{number(at_one and at_one["energy_without_gravity_reduction_percent"], 1, unit="%")})',
+         paper('energy_reduction_1ms', 0), PAPER_RESULTS['energy_reduction_1ms']['source']),
+        ('workspace extension by tossing (exp. 2)',
+         number(workspace and workspace['extension_percent'], 1, unit='%'),
+         paper('workspace_extension', 0), PAPER_RESULTS['workspace_extension']['source']),
+        ('success rate, robustness trials (exp. 4)',
+         (f'{number(robustness["success_rate"], 1, 100.0, "%")} of {robustness["trials"]}'
+          if robustness else MISSING), 'not reported', ''),
+        ('landing error, toss to target: mean / max (exp. 5)',
+         (f'{number(targets["landing_error"]["mean"], 1, 1000.0)} / '
+          f'{number(targets["landing_error"]["max"], 1, 1000.0, "mm")}'
+          if targets else MISSING), 'not reported', ''),
+    ]
+    return rows
+
+
+def fast_toss_section(results, link_root):
+    """Experiment 1: paper_toss on the node graph."""
+    fast = results['fast_toss']
+    out = ['## 1. Fast grab-and-toss (paper IV-A, Figures 6-7)', '']
+    if fast is None:
+        return out + [not_run('fast_toss')]
+    m = fast['metrics']
+    out += [
+        f'Runner: {fast["runner"]}, scenario `{fast["scenario"]}` (the 0.2 m, 0.7 kg cube from '
+        f'the pallet, released at {fast["desired_release"]["position"]} m with '
+        f'{[round(v, 3) for v in fast["desired_release"]["velocity"]]} m/s). The episode is '
+        f'the product: every node in its own process, bridge in lockstep '
+        f'(graph wall time {fast["graph_wall_time"]:.1f} s). Times count from the episode start '
+        f'(0.3 s of sim time after the tare window). The in-process runner gives the same '
+        f'events (largest difference over contact, release and cycle times and the release and '
+        f'landing errors: {max(fast["inprocess_max_difference"].values(), default=0.0):.2g}).',
+        '',
+        table(('quantity', 'ours', 'paper'), [
+            ('contact instant, left / right', f'{number(m["t_contact_left"])} / '
+             f'{number(m["t_contact_right"], unit="s")}', f'~{paper("contact_time")}'),
+            ('impact speed, left / right', f'{number(m["impact_speed_left"])} / '
+             f'{number(m["impact_speed_right"], unit="m/s")}', paper('impact_speed')),
+            ('impact speed along the contact normal, left / right',
+             f'{number(m.get("impact_speed_along_normal_left"))} / '
+             f'{number(m.get("impact_speed_along_normal_right"), unit="m/s")}', MISSING),
+            ('contact time gap', number(m['contact_time_gap'], 1, 1000.0, 'ms'), MISSING),
+            ('release instant', number(m['t_release'], unit='s'), MISSING),
+            ('release position error', number(m['release_position_error'], 1, 1000.0, 'mm'),
+             f'within {paper("release_position_tolerance")}'),
+            ('release velocity error (relative)',
+             number(m['release_velocity_error'], 1, 100.0, '%'), MISSING),
+            ("landing error vs the desired release's ballistic landing",
+             number(m['landing_error'], 1, 1000.0, 'mm'), MISSING),
+            ('peak object speed while grasped', number(fast['peak_grasped_object_speed'],
+                                                       unit='m/s'),
+             f'{paper("toss_speed")} desired'),
+            ('largest pad slip on the object', number(m['max_slip'], 1, 1000.0, 'mm'), MISSING),
+            ('cycle time (start to both tools home)', number(m['cycle_time'], unit='s'),
+             MISSING),
+            ('energy left / right', f'{number(m["energy_left"], 1)} / '
+             f'{number(m["energy_right"], 1, unit="J")}', MISSING),
+            ('episode success (metrics.json criteria)', m['success'], MISSING)]),
+        '', plot_links(results, 'fast_toss', link_root), '']
+    return out
+
+
+def workspace_section(results, link_root):
+    """Experiment 2: tossing reachable space."""
+    ws = results['toss_workspace']
+    out = ['## 2. Tossing reachable space (paper Figure 8)', '']
+    if ws is None:
+        return out + [not_run('toss_workspace')]
+    method = ws['method']
+    speeds = sorted({toss['speed'] for toss in ws['tosses']})
+    elevations = sorted({toss['elevation_deg'] for toss in ws['tosses']})
+    headings = sorted({toss['heading_deg'] for toss in ws['tosses']})
+    out += [
+        f'Runner: {ws["runner"]}. {ws["toss_count"]} tosses of paper_toss from the release '
+        f'position {ws["release_position"]} m with release speeds {speeds} m/s, elevations '
+        f'{elevations} deg and headings {headings} deg (every combination); '
+        f'{ws["valid_count"]} were grasped, released and landed on the front table (their '
+        f'measured landings are used), {ws["success_count"]} also met every episode '
+        f'criterion (release velocity within 10 %, landing within 5 cm of prediction).',
+        '',
+        'Method. Joint reachable space: for each arm '
+        f'{method["samples_per_arm"]} joint configurations sampled uniformly within the limits '
+        f'(seed {method["seed"]}); A1 (vertical) is turned so the pad normal points across '
+        f'the cell (left -y, right +y), keeping samples with A1 in its limits and the normal '
+        f'within {method["pad_max_tilt_deg"]:g} deg of horizontal ({method["kept_samples"]} '
+        f'kept). An object centre c is jointly reachable when left tool samples fall in the '
+        f'grid cell of c + (0, {method["half_width"]:g}, 0) and right tool samples in that of '
+        f'c - (0, {method["half_width"]:g}, 0) within the same {method["slab_height"]:g} m '
+        f'height slab, for tool heights {method["z_band"]} m (from the object resting on the '
+        f'front table up to above the standby height); top view on a '
+        f'{method["grid"]["cell"]:g} m grid over x >= {method["grid"]["x0"]:g} m (in front '
+        f'of the bases). Collisions and self-collisions are not modelled, so the joint space is '
+        f'if anything too large (the extension too small). Tossing space: the convex hull of '
+        f'the landings on the same grid. Extension = hull cells outside the joint space / '
+        f'joint space.',
+        '',
+        f'Why the extension is small: the farthest landing is '
+        f'{number(ws["farthest_landing"], 3, unit="m")} from the release point horizontally; '
+        f'no drag-free toss at {ws["fastest_toss"]:g} m/s released at that height can land '
+        f'farther than {number(ws["longest_toss"], 3, unit="m")}, while the joint reachable '
+        f'space already reaches x = {number(ws["joint_max_x_at_y0"], 3, unit="m")} at y = 0, '
+        f'{number(ws["joint_max_x_at_y0"] - ws["release_position"][0], 3, unit="m")} beyond '
+        f'the release point. The release speed is capped by the tool speed limit (1.1 m/s).',
+        '',
+        table(('quantity', 'ours', 'paper'), [
+            ('tosses (valid landings)', f'{ws["toss_count"]} ({ws["valid_count"]})',
+             paper('tosses')),
+            ('joint reachable area (top view)', number(ws['joint_area'], 3, unit='m²'),
+             MISSING),
+            ('landing hull area', number(ws['toss_area'], 3, unit='m²'), MISSING),
+            ('added area outside the joint space', number(ws['added_area'], 3, unit='m²'),
+             MISSING),
+            ('landing x range / y range', f'{value_range(ws["landing_extent"]["x"])} / '
+             f'{value_range(ws["landing_extent"]["y"])} m', MISSING),
+            ('extension', number(ws['extension_percent'], 1, unit='%'),
+             paper('workspace_extension', 0))]),
+        '', plot_links(results, 'toss_workspace', link_root), '']
+    return out
+
+
+def place_vs_toss_section(results, link_root):
+    """Experiment 3: pick-and-place vs pick-and-toss."""
+    pvt = results['place_vs_toss']
+    out = ['## 3. Pick-and-place vs pick-and-toss (paper IV-B, Figures 9-10)', '']
+    if pvt is None:
+        return out + [not_run('place_vs_toss')]
+    settings = pvt['settings']
+    rows = []
+    for row in pvt['summary']:
+        place, toss = row['pick_and_place'], row['pick_and_toss']
+        rows.append((
+            f'{row["speed"]:.1f}', mean_std(place['cycle_time']), mean_std(toss['cycle_time']),
+            number(row['cycle_time_reduction_percent'], 1, unit='%'),
+            mean_std(place['energy'], 1), mean_std(toss['energy'], 1),
+            number(row['energy_reduction_percent'], 1, unit='%'),
+            number(row['positive_work_reduction_percent'], 1, unit='%'),
+            number(row['energy_without_gravity_reduction_percent'], 1, unit='%'),
+            f'{place["successes"]}/{place["runs"]}', f'{toss["successes"]}/{toss["runs"]}',
+            mean_std(place['max_slip'], 1, 1000.0)))
+    probe = pvt['near_zero_contact_probe']
+    out += [
+        f'Runner: {pvt["runner"]}. At each task speed v, pick-and-toss is `'
+        f'{settings["toss_scenario"]}` with reach speed v and release velocity v along its '
+        f'direction (released at {settings["toss_release_position"]} m); pick-and-place is `'
+        f'{settings["place_scenario"]}` (place at '
+        f'{[round(x, 3) for x in settings["place_target"]]} m on the front table) with reach '
+        f'and carrying speed v. Both grab with the '
+        f'scenario impact speed {settings["impact_speed"]:g} m/s, so the comparison isolates '
+        f'placing vs tossing. {pvt["repeats"]} runs per task and speed (sensor-noise seeds); '
+        f'mean ± std.',
+        '',
+        'Definitions (episode_metrics, identical for both tasks): cycle time = from the '
+        'episode start to the first instant after the release (both pads off the object for '
+        '20 ms: the toss release, or the pads leaving the placed object) when both tools are '
+        'back within 3 cm of their start positions. Energy per arm = ∫|τᵀq̇|dt over that cycle '
+        '(the applied joint torques, gravity compensation included, times joint speeds, both '
+        'arms summed here). The paper plots an "estimated energy consumption" without stating '
+        'the formula. Two more estimates: the positive work ∫max(τᵀq̇, 0)dt (drives recover '
+        'nothing) and the energy beyond gravity ∫|(τ - g(q))ᵀq̇|dt. Most of ∫|τᵀq̇|dt is the '
+        "arms' own weight going down to the pallet and back up to standby, the same in both "
+        'tasks; the last column leaves it out. Success: the episode criteria of '
+        'metrics.json (for place: placed within 3 cm, released below 0.1 m/s; pad slip is '
+        'not a criterion for place, so it is listed).',
+        '',
+        table(('v [m/s]', 'place cycle [s]', 'toss cycle [s]', 'time reduction',
+               'place energy [J]', 'toss energy [J]', 'energy reduction',
+               'positive-work reduction', 'reduction beyond gravity', 'place ok', 'toss ok',
+               'place slip [mm]'), rows),
+        '',
+        f'Paper at 1.0 m/s: time {paper("time_reduction_1ms", 0)} shorter, energy '
+        f'{paper("energy_reduction_1ms", 0)} less, with the place contacting at '
+        f'{paper("place_contact_speed")} and releasing at {paper("place_release_speed")} (its '
+        f'toss impacts at {paper("toss_impact_speed_1ms")}).',
+        '',
+        f"Near-zero contact probe: the paper's classical place contacts at about "
+        f'{paper("place_contact_speed")}. One pick-and-place run at v = {probe["speed"]:.1f} m/s '
+        f'with impact speed {probe["impact_speed_setting"]:g} m/s: success {probe["success"]}, '
+        f'cycle time {number(probe["cycle_time"], unit="s")}, slip '
+        f'{number(probe["max_slip"], 1, 1000.0, "mm")}, place error '
+        f'{number(probe["place_position_error"], 1, 1000.0, "mm")}, energy '
+        f'{number(probe["energy"], 1, unit="J")} '
+        f'({number(probe.get("energy_without_gravity"), 1, unit="J")} beyond gravity). '
+        f'Against it the toss at the same speed is '
+        f'{number(_probe_reduction(pvt, "cycle_time"), 1, unit="%")} shorter and uses '
+        f'{number(_probe_reduction(pvt, "energy"), 1, unit="%")} less energy '
+        f'({number(_probe_reduction(pvt, "energy_without_gravity"), 1, unit="%")} beyond '
+        f'gravity). A missing cycle time means the arms were not back home within the '
+        f'{settings["place_duration"]:g} s run. The slow approach (the reach DS slows to the '
+        f'impact speed within 0.25 m of the object) and the large slip make this run a poor '
+        f'baseline, hence the comparison above at equal impact speed.',
+        '', plot_links(results, 'place_vs_toss', link_root), '']
+    return out
+
+
+def _probe_reduction(pvt, key):
+    """Return how much less key the toss needs than the near-zero contact probe [%]."""
+    probe = pvt['near_zero_contact_probe']
+    toss = _at_speed(pvt, probe['speed'])
+    if toss is None or key not in toss['pick_and_toss']:
+        return None
+    return reduction_percent(probe.get(key), toss['pick_and_toss'][key]['mean'])
+
+
+def robustness_section(results, link_root):
+    """Experiment 4 (dual_arm_eval): success rate and metric distribution."""
+    summary = results['robustness']
+    out = ['## 4. Robustness (dual_arm_eval)', '']
+    if summary is None:
+        return out + ['_Not run: `robustness/summary.json` is missing. Run `dual_arm_eval` '
+                      '(see README)._', '']
+    rows = [(key, *(number(entry.get(stat), 4) for stat in
+                    ('mean', 'median', 'p95', 'min', 'max')), entry.get('count', MISSING))
+            for key, entry in sorted(summary.get('metrics', {}).items())]
+    failures = summary.get('failures', [])
+    out += [
+        f'Scenario `{summary.get("scenario")}`, runner {summary.get("runner")}, '
+        f'{summary.get("trials")} trials ({summary.get("jobs")} jobs, seed '
+        f'{summary.get("seed")}): success rate '
+        f'{number(summary.get("success_rate"), 1, 100.0, "%")}, wall time '
+        f'{number(summary.get("wall_time"), 0, unit="s")} '
+        f'({number(summary.get("trials_per_hour"), 0)} trials/h).', '',
+        table(('metric', 'mean', 'median', 'p95', 'min', 'max', 'count'), rows), '',
+        f'Failures: {len(failures)}' + ('' if not failures else ': ' + '; '.join(
+            f'trial {item.get("trial")}: {item.get("reason")}' for item in failures[:10])
+            + (' …' if len(failures) > 10 else '')), '']
+    out += image_links([plot for plot in results.get('robustness_plots', [])
+                        if not plot.startswith('robustness/displaced')], link_root)
+    out += ['']
+    displaced = results['displaced']
+    if displaced is not None:
+        out += ['Mid-reach displacement run (`robustness/displaced/metrics.json`): success '
+                f'{displaced.get("success")}, contact gap '
+                f'{number(displaced.get("contact_time_gap"), 1, 1000.0, "ms")}, release '
+                'position error '
+                f'{number(displaced.get("release_position_error"), 1, 1000.0, "mm")}, '
+                f'landing error {number(displaced.get("landing_error"), 1, 1000.0, "mm")}.',
+                '']
+        out += image_links([plot for plot in results.get('robustness_plots', [])
+                            if plot.startswith('robustness/displaced')], link_root)
+        out += ['']
+    return out
+
+
+def toss_to_target_section(results, link_root):
+    """Experiment 5: landing error over a grid of targets."""
+    ttt = results['toss_to_target']
+    out = ['## 5. Toss to target', '']
+    if ttt is None:
+        return out + [not_run('toss_to_target')]
+    rows = [(f'({row["target"][0]:.2f}, {row["target"][1]:+.2f})',
+             number(row['release_speed_planned'], 2), number(row['release_elevation_deg'], 1),
+             MISSING if row['landing_position'] is None else
+             f'({row["landing_position"][0]:.3f}, {row["landing_position"][1]:+.3f})',
+             number(row['landing_error'], 1, 1000.0),
+             number(row['release_position_error'], 1, 1000.0),
+             number(row['release_velocity_error'], 1, 100.0), 'yes' if row['hit'] else 'no')
+            for row in ttt['targets']]
+    errors = ttt['landing_error']
+    out += [
+        f'Runner: {ttt["runner"]}. Task `toss_to_target` (paper_toss otherwise): the motion '
+        f'generator solves the least-speed release velocity from the release position '
+        f'{ttt["release_position"]} m to each landing target; targets on a grid over the front '
+        f'table with the box fully on the table and a planned release speed of at most '
+        f'{ttt["max_release_speed"]:g} m/s. Landing error = horizontal distance between the '
+        f'measured landing of the box centre and the target; a hit is within '
+        f'{number(ttt["landing_limit"], 0, 1000.0, "mm")}.',
+        '',
+        f'Landing error over {errors["count"]} targets: mean {number(errors["mean"], 1, 1000.0)}'
+        f' ± {number(errors["std"], 1, 1000.0)} mm, max {number(errors["max"], 1, 1000.0)} mm; '
+        f'{ttt["hit_count"]}/{len(ttt["targets"])} hits, {errors["missing"]} without a landing. '
+        f'The landings fall short of the targets, toward the release point, by '
+        f'{number(ttt["shortfall"]["mean"], 1, 1000.0, "mm")} on average, while the ballistic '
+        f'prediction from the measured release state matches the measured landing within '
+        f'{number(ttt["landing_prediction_error"]["mean"], 1, 1000.0, "mm")} on average: the '
+        f'error comes from the release state (mean release position error '
+        f'{number(ttt["release_position_error"]["mean"], 1, 1000.0, "mm")}), not the flight.',
+        '',
+        table(('target (x, y) [m]', 'release speed [m/s]', 'elevation [deg]',
+               'landing (x, y) [m]', 'landing error [mm]', 'release pos. error [mm]',
+               'release vel. error [%]', 'hit'), rows),
+        '', plot_links(results, 'toss_to_target', link_root), '']
+    return out

@@ -1,0 +1,106 @@
+"""
+What dual_arm_eval's trials left: one outcome per trial, the batch statistics, failure reasons.
+
+summarize() aggregates the per-episode metrics (evaluation/episode.py); failure_reason() names
+the success criteria a finished trial missed.
+"""
+
+from dataclasses import dataclass
+
+from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, LANDING_LIMIT, PLACE_LIMIT,
+                                                 PLACE_SPEED_LIMIT, PLACE_TILT_LIMIT,
+                                                 RELEASE_POSITION_LIMIT, RELEASE_VELOCITY_LIMIT,
+                                                 SLIP_LIMIT)
+from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
+import numpy as np
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    """What one trial left: its metrics dict, or None and the reason it produced none."""
+
+    index: int
+    metrics: object = None
+    error: object = None
+
+
+def succeeded(outcome):
+    """Return True if the trial produced metrics and they say success."""
+    return outcome.metrics is not None and outcome.metrics.get('success') is True
+
+
+def _numeric(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def summarize(metrics_list):
+    """
+    Aggregate the trials' metrics: return {'trials', 'success_rate', 'metrics'}.
+
+    metrics_list holds one metrics dict per trial, or None for a trial that produced none (it
+    counts as a failure). success_rate = trials with success true / all trials. For every key
+    whose non-null values are all numbers (bools excluded), 'metrics' gives mean, median, p95
+    (numpy percentile, linear interpolation), min and max over the trials where it is not
+    null, and count = the number of those trials. Keys keep the order they first appear in.
+    """
+    trials = len(metrics_list)
+    present = [metrics for metrics in metrics_list if metrics]
+    successes = sum(1 for metrics in present if metrics.get('success') is True)
+    values = {}
+    for metrics in present:
+        for key, value in metrics.items():
+            if value is not None:
+                values.setdefault(key, []).append(value)
+    statistics = {}
+    for key, items in values.items():
+        if not all(_numeric(item) for item in items):
+            continue
+        array = np.array(items, dtype=float)
+        statistics[key] = {'mean': float(array.mean()), 'median': float(np.median(array)),
+                           'p95': float(np.percentile(array, 95)), 'min': float(array.min()),
+                           'max': float(array.max()), 'count': int(array.size)}
+    return {'trials': trials, 'success_rate': successes / trials if trials else None,
+            'metrics': statistics}
+
+
+def _exceeds(key, value, limit, unit):
+    """Return 'key value > limit unit'; the value in full when it rounds to the limit."""
+    text = f'{value:.4g}'
+    if float(text) <= limit:
+        text = repr(value)
+    return f'{key} {text} > {limit:g}{" " + unit if unit else ""}'
+
+
+def failure_reason(task, metrics):
+    """Return why a finished trial of task failed its success criteria (evaluation/episode.py)."""
+    reasons = []
+    collisions = metrics.get('arm_collision_count')
+    if collisions:
+        first = metrics.get('first_arm_collision') or {}
+        reasons.append(f'{collisions} arm collisions (first: {" - ".join(first.get("geoms", []))} '
+                       f'at {first.get("t", float("nan")):.3f} s)')
+    gap = metrics.get('contact_time_gap')
+    if gap is None:
+        reasons.append('no contact of both pads')
+    elif gap > CONTACT_GAP_LIMIT:
+        reasons.append(_exceeds('contact_time_gap', gap, CONTACT_GAP_LIMIT, 's'))
+    if gap is not None and metrics.get('t_grasp') is None:
+        reasons.append('no sustained grasp')
+    checks = [('max_slip', SLIP_LIMIT, 'm')]
+    if task in TOSS_TASKS:
+        checks += [('release_position_error', RELEASE_POSITION_LIMIT, 'm'),
+                   ('release_velocity_error', RELEASE_VELOCITY_LIMIT, ''),
+                   ('landing_error', LANDING_LIMIT, 'm')]
+        if metrics.get('t_grasp') is not None and metrics.get('t_release') is None:
+            reasons.append('no release')
+        elif metrics.get('t_release') is not None and metrics.get('landing_error') is None:
+            reasons.append('no landing within the run')
+    elif task in PLACE_TASKS:
+        checks = [('place_position_error', PLACE_LIMIT, 'm'),
+                  ('place_speed', PLACE_SPEED_LIMIT, 'm/s'),
+                  ('box_tilt_at_place', PLACE_TILT_LIMIT, 'deg')]
+    for key, limit, unit in checks:
+        value = metrics.get(key)
+        if value is not None and value > limit:
+            reasons.append(_exceeds(key, value, limit, unit))
+    return '; '.join(reasons) or 'failed its success criteria'
