@@ -45,6 +45,9 @@ class RunnerConfig:
     controller: PassiveControllerConfig = field(default_factory=PassiveControllerConfig)
     wrench: WrenchDistributorConfig = field(default_factory=WrenchDistributorConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    command_outages: tuple = ()
+    """Fault injection: (arm, start, end) sim-time windows [s] in which that arm's controller
+    gets no DS command (it holds once its last command is stale), e.g. a late start."""
 
 
 @dataclass
@@ -130,7 +133,8 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
                     state.stamp_ns, tick.phase.phase, tick.desired_twist,
                     {arm: state.joints[arm].position for arm in ARMS}, estimate)
             for arm in ARMS:
-                roles.controllers[arm].command(tick.commands[arm])
+                if not _in_outage(config.command_outages, arm, state.stamp_ns * 1e-9):
+                    roles.controllers[arm].command(tick.commands[arm])
                 roles.controllers[arm].wrench(wrenches[arm])
         for arm in ARMS:
             with timer.stage('controller'):
@@ -142,3 +146,8 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
     recorder.counters.update(fri.log_counters())
     log.trajectory = recorder.arrays()
     return log
+
+
+def _in_outage(outages, arm, time):
+    """Return True if arm's commands are cut at sim time [s] by one of the outage windows."""
+    return any(name == arm and start <= time < end for name, start, end in outages)

@@ -69,12 +69,13 @@ def test_a_controller_past_its_deadline_gets_its_last_torque_once_then_the_hold(
     The FRI deadline policy, deterministic in lockstep.
 
     The right controller (zero torque: the arm falls) stalls for ten cycles (0.100-0.118 s);
-    the bridge waits 0.3 s wall for each, then applies the arm's previous torque (zero) for the
+    the bridge waits 0.8 s wall for each (far above a healthy answer's few ms, even on a loaded
+    machine), then applies the arm's previous torque (zero) for the
     first missed cycle and the robot's hold (gravity compensation and hold damping) for the
     others; then its zero torque again.
     """
     data = run_lockstep(tmp_path, ros_domain, 'stall', 0.2,
-                        {'left': 'gravity', 'right': 'zero'}, lockstep_answer_timeout=0.3,
+                        {'left': 'gravity', 'right': 'zero'}, lockstep_answer_timeout=0.8,
                         controller_parameters={'right': {'mute_window': [0.1, 0.1195]}})
     rows = {round(t * 1e3): row for row, t in enumerate(data['t'])}
     tau, q, dq = (data[f'right_{name}'] for name in ('tau', 'q', 'dq'))

@@ -108,18 +108,18 @@ def assert_sequence(record, expected, dt):
 
 
 TOSS_SEQUENCE = [(Phase.REACH, 0.10), (Phase.CONTACT, 0.52), (Phase.MANIPULATE, 0.57),
-                 (Phase.RELEASE, 0.87), (Phase.RETRACT, 0.95), (Phase.STANDBY, 1.30)]
+                 (Phase.RELEASE, 0.90), (Phase.RETRACT, 0.95), (Phase.STANDBY, 1.30)]
 
 
 @pytest.mark.parametrize('dt', RATES_DT)
 @pytest.mark.parametrize('task', [Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS])
 def test_toss_tasks_full_sequence(task, dt):
-    """Release when the object comes within 0.03 m of the release point (1 m/s: at 0.87 s)."""
+    """Release when the object reaches the plane through the release point (1 m/s: at 0.90 s)."""
     machine = PhaseMachine(PhaseConfig(), task)
     record = run(machine, Scenario(), dt, 1.5)
     assert_sequence(record, TOSS_SEQUENCE, dt)
     release = [tr for _, tr in transitions(record) if tr.target is Phase.RELEASE][0]
-    assert 'from the release position' in release.reason
+    assert 'reaches the release plane 0.000 m' in release.reason
     events = [e for _, out in record for e in out.events]
     for name in ('episode_started', 'contact_left', 'contact_right', 'grasp_settled',
                  'released', 'hands_open', 'home', 'contact_lost_left', 'contact_lost_right'):
@@ -174,7 +174,7 @@ def test_release_on_crossing_the_plane_off_path(dt):
     found = transitions(record)
     release_time, release = [(t, tr) for t, tr in found if tr.target is Phase.RELEASE][0]
     assert 0.9 - 1e-9 <= release_time < 0.9 + dt + 1e-9
-    assert 'crossed the release plane 0.050 m' in release.reason
+    assert 'reaches the release plane 0.050 m' in release.reason
 
 
 @pytest.mark.parametrize('offset', [np.array([0.0, 0.3, 0.0]), np.array([0.0, 0.0, -0.15])])
@@ -201,7 +201,7 @@ def test_second_episode_is_clean(dt):
     After a full episode a second one repeats the same transitions, shifted by its start.
 
     A release flag latched forever would release at once in the
-    second episode; here the release again happens at 0.87 s after the episode's origin. The
+    second episode; here the release again happens at 0.90 s after the episode's origin. The
     start command is held high through the whole first episode: it must act only once.
     """
     machine = PhaseMachine(PhaseConfig())
@@ -234,13 +234,18 @@ def test_time_in_phase(dt):
 
 
 @pytest.mark.parametrize('dt', RATES_DT)
-def test_single_contact_timeout_is_reported_once(dt):
-    """Left pad alone from 0.50 s; right pad never: reported at 0.70 s, phase stays REACH."""
+def test_single_contact_is_reported_then_the_grasp_aborted(dt):
+    """Left pad alone from 0.50 s, right pad never: reported at 0.70 s, aborted at 0.90 s."""
     machine = PhaseMachine(PhaseConfig())
     record = run(machine, Scenario(right_contact_start=10.0), dt, 1.5)
     reports = [t for t, out in record if 'single_contact_timeout_left' in out.events]
     assert len(reports) == 1 and 0.70 - 1e-9 <= reports[0] < 0.70 + dt + 1e-9
-    assert record[-1][1].phase is Phase.REACH
+    aborts = [(t, out) for t, out in record if 'grasp_aborted' in out.events]
+    assert len(aborts) == 1 and 0.90 - 1e-9 <= aborts[0][0] < 0.90 + dt + 1e-9
+    transition = aborts[0][1].transition
+    assert transition.target is Phase.RETRACT
+    assert 'only the left pad touched' in transition.reason
+    assert all(out.phase is not Phase.CONTACT for _, out in record)
 
 
 def test_contact_lost_before_settling_returns_to_reach():

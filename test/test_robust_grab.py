@@ -10,6 +10,7 @@ import math
 
 from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.impact import clearance_limited_direction, ImpactConfig
 from dual_arm_control.core.reachability import (grasp_shifts, plan_grasp,
                                                 ReachabilityConfig)
@@ -141,7 +142,7 @@ def test_nominal_grasp_is_reachable_and_a_close_yawed_one_is_refused(cell):
     config = ReachabilityConfig()
     size = np.array([0.2, 0.2, 0.2])
     nominal = plan_grasp(models, home, np.array([0.41, 0.0, 0.32]), np.eye(3), size, config)
-    assert nominal.reachable and nominal.shift == 0.0 and nominal.reason == ''
+    assert nominal.reachable and not nominal.offset.any() and nominal.reason == ''
     for arm, solution in nominal.solutions.items():
         lower, upper = models[arm].position_limits
         assert np.all(solution.q >= lower) and np.all(solution.q <= upper)
@@ -158,4 +159,125 @@ def test_grasp_shifts_keep_the_pad_on_the_face():
     config = ReachabilityConfig()
     shifts = grasp_shifts([0.26, 0.26, 0.26], config)
     assert shifts[0] == 0.0 and shifts[-1] == pytest.approx(0.13 - 0.075 - config.edge_margin)
-    assert grasp_shifts([0.16, 0.16, 0.16], config) == (0.0,)
+    assert len(shifts) == config.shift_steps + 1 and np.all(np.diff(shifts) > 0.0)
+    no_overhang = ReachabilityConfig(edge_margin=0.01)
+    assert grasp_shifts([0.16, 0.16, 0.16], no_overhang) == (0.0,)
+    # Whatever the shift, the pad keeps at least its length less the overhang on the face.
+    for size in ([0.16] * 3, [0.2] * 3, [0.25, 0.19, 0.2]):
+        for shift in grasp_shifts(size, config):
+            on_face = min(0.5 * size[0], shift + 0.075) - (shift - 0.075)
+            assert on_face >= 0.15 + min(config.edge_margin, 0.0) - 1e-12
+
+
+def test_a_pad_touching_alone_stops_pushing_into_its_face():
+    from dual_arm_control.core.approach import yield_to_single_contact
+    from dual_arm_control.core.contact import ContactState
+    from dual_arm_control.core.grasp import grasp_frame
+    from dual_arm_control.core.motion_generator import ArmCommand
+    frames = {arm: grasp_frame(arm, np.array([0.41, 0.0, 0.32]), yaw_rotation(0.3),
+                               [0.2, 0.2, 0.2]) for arm in ('left', 'right')}
+    commands = {arm: ArmCommand(0.5 * frames[arm].normal + [0.1, 0.0, 0.2], np.zeros(3),
+                                frames[arm].R_world_grasp, frames[arm].p_world_grasp)
+                for arm in frames}
+    fields = ContactState.__dataclass_fields__
+    touching = ContactState(**{name: (True if name == 'in_contact' else None)
+                               for name in fields})
+    free = ContactState(**{name: (False if name == 'in_contact' else None) for name in fields})
+    yielded = yield_to_single_contact(commands, {'left': touching, 'right': free}, frames)
+    assert yielded['left'].v_world @ frames['left'].normal == pytest.approx(0.0, abs=1e-12)
+    tangential = commands['left'].v_world - (commands['left'].v_world @ frames['left'].normal
+                                             ) * frames['left'].normal
+    np.testing.assert_allclose(yielded['left'].v_world, tangential, atol=1e-12)
+    assert yielded['right'] is commands['right']
+    both = yield_to_single_contact(commands, {'left': touching, 'right': touching}, frames)
+    assert both is commands
+
+
+def test_the_arm_that_would_touch_first_waits_for_the_other():
+    from dual_arm_control.core.approach import synchronised_arrival
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    velocity = np.array([[0.1, -0.4, 0.0], [0.1, 0.4, 0.0]])
+    # Left 4 cm from its face, right 8 cm: at equal closing speeds left would touch in half
+    # the time, so it gets half the speed, and both touch together.
+    slowed = synchronised_arrival(velocity, [0.04, 0.08], normals, horizon=0.25)
+    np.testing.assert_allclose(slowed[0], 0.5 * velocity[0])
+    np.testing.assert_array_equal(slowed[1], velocity[1])
+    times = np.array([0.04, 0.08]) / np.einsum('ij,ij->i', slowed, normals)
+    assert times[0] == pytest.approx(times[1])
+    # Far from the faces, or already in step, nothing changes.
+    np.testing.assert_array_equal(synchronised_arrival(velocity, [0.30, 0.40], normals, 0.25),
+                                  velocity)
+    np.testing.assert_array_equal(synchronised_arrival(velocity, [0.05, 0.05], normals, 0.25),
+                                  velocity)
+    # Never slower than the floor.
+    floor = synchronised_arrival(velocity, [0.001, 0.1], normals, 0.25, slowest=0.3)
+    np.testing.assert_allclose(floor[0], 0.3 * velocity[0])
+
+
+def test_null_space_posture_follows_a_reachable_solution_within_limits(cell):
+    from dual_arm_control.core.passive_control import PassiveController
+    model = arm_model('left', cell)
+    controller = PassiveController(model, cell.arm('left').q_home)
+    target = plan_grasp({arm: arm_model(arm, cell) for arm in ('left', 'right')},
+                        {arm: cell.arm(arm).q_home for arm in ('left', 'right')},
+                        np.array([0.41, 0.0, 0.32]), np.eye(3), np.array([0.2, 0.2, 0.2]),
+                        ReachabilityConfig())
+    assert target.reachable
+    from dual_arm_control.core.grasp import grasp_frame
+    frame = grasp_frame('left', np.array([0.41, 0.0, 0.32]), np.eye(3), [0.2, 0.2, 0.2])
+    lower, upper = model.position_limits
+    step = controller.config.posture_tracking_step
+    previous = np.array(controller.q_null)
+    for _ in range(1500):
+        controller.track_posture(frame.p_world_grasp, frame.R_world_grasp)
+        assert np.linalg.norm(controller.q_null - previous) <= step + 1e-12
+        assert np.all(controller.q_null >= lower) and np.all(controller.q_null <= upper)
+        previous = np.array(controller.q_null)
+    p_world_tool, R_world_tool = model.tool_pose(controller.q_null)
+    assert np.linalg.norm(p_world_tool - frame.p_world_grasp) < 0.005
+    assert np.degrees(np.linalg.norm(
+        rotation_log(frame.R_world_grasp @ R_world_tool.T))) < 1.0
+
+
+def test_a_late_arm_does_not_let_the_other_push_the_box(cell):
+    """
+    The right arm's start is delayed by 0.25 s (its controller gets no command and holds).
+
+    The left pad reaches its face first; it must not push the box away: the box moves less
+    than 1 cm before both pads touch, and the grasp then closes and the toss succeeds.
+    """
+    from dual_arm_control.inprocess import run_episode, RunnerConfig
+    scenario = load_scenario('paper_toss', cell)
+    start = RunnerConfig().start_time
+    log = run_episode(scenario, RunnerConfig(command_outages=(('right', 0.0, start + 0.25),)),
+                      cell=cell)
+    data = log.trajectory
+    both = int(np.argmax(data['left_pad_contact'] & data['right_pad_contact']))
+    assert data['left_pad_contact'][both] and data['right_pad_contact'][both]
+    first = min(int(np.argmax(data[f'{arm}_pad_contact'])) for arm in ('left', 'right'))
+    moved = np.linalg.norm(data['object_position'][:both + 1] - data['object_position'][0],
+                           axis=1).max()
+    print(f'first contact {data["t"][first]:.3f} s, both {data["t"][both]:.3f} s, box moved '
+          f'{moved * 1e3:.1f} mm before both pads touched')
+    assert moved < 0.01
+    metrics = episode_metrics(scenario, data, cell)
+    assert metrics['arm_collision_count'] == 0
+    assert metrics['t_grasp'] is not None
+
+
+def test_failure_modes_count_each_trials_first_reason():
+    from dual_arm_control.evaluation.report_sections import failure_modes
+    from dual_arm_control.evaluation.trial_summary import failure_reason
+    refused = {'contact_time_gap': None, 'max_tool_drift_left': 0.0,
+               'max_tool_drift_right': 0.002, 'arm_collision_count': 0}
+    late = {'contact_time_gap': 0.016, 't_grasp': 1.0, 'max_slip': 0.004,
+            'max_tool_drift_left': 0.4, 'max_tool_drift_right': 0.4, 'arm_collision_count': 0}
+    bumped = dict(late, contact_time_gap=0.004, arm_collision_count=2,
+                  first_arm_collision={'t': 2.8, 'geoms': ['front_table', 'left/pad']})
+    reasons = [failure_reason('pick_and_toss', metrics) for metrics in (refused, late, late,
+                                                                        bumped)]
+    assert reasons[0].startswith('no reach: the arms stayed at standby')
+    assert 'front_table - left/pad' in reasons[3]
+    modes = dict(failure_modes([{'reason': reason} for reason in reasons]))
+    assert modes == {'contact_time_gap over its limit': 2, 'arm collisions': 1,
+                     'no reach: the arms stayed at standby': 1}

@@ -11,11 +11,11 @@ within the statistical scatter, and the stated absolute bounds follow from it.
 from dataclasses import dataclass
 import math
 
+from dual_arm_control.core.estimate import MeasurementOutcome, white_acceleration_noise
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import (matrix_to_quat_xyzw, quat_xyzw_to_matrix,
                                             rotation_exp, rotation_log)
-from dual_arm_control.core.tracker import (MeasurementOutcome, ObjectTracker, TrackerConfig,
-                                           white_acceleration_noise)
+from dual_arm_control.core.tracker import ObjectTracker, TrackerConfig
 import numpy as np
 import pytest
 

@@ -1,7 +1,6 @@
 """The MuJoCo twin in process: holding, falling, contacts, sensors, determinism, input checks."""
 
 import dataclasses
-import time
 
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix, rotation_log
@@ -342,20 +341,3 @@ def test_two_pads_squeeze_and_lift_the_box(cell, hold_scenario):
         force_sensor, _ = twin.ft_wrench(arm)
         assert force_sensor[2] == pytest.approx(-squeeze, abs=3.0), \
             f'{arm}: FT z {force_sensor[2]:.1f} N; the pad pushing with {squeeze} N reads -z'
-
-
-def test_print_step_rate(cell, hold_scenario):
-    """Benchmark, not a check: DualArmTwin.step at FRI 2 ms with hold torques."""
-    twin = DualArmTwin(hold_scenario, cell, fri_period=0.002)
-    zero = {arm: np.zeros(7) for arm in twin.arms}
-    start = time.perf_counter()
-    for _ in range(1000):
-        twin.step(zero)
-    rate = 1000 / (time.perf_counter() - start)
-    twin.reset()
-    start = time.perf_counter()
-    for _ in range(1000):
-        twin.step(hold_all(twin))
-    rate_hold = 1000 / (time.perf_counter() - start)
-    print(f'DualArmTwin.step at FRI 2 ms: {rate:.0f} steps/s ({2 * rate:.0f} physics steps/s); '
-          f'with hold_torques per arm: {rate_hold:.0f} steps/s')

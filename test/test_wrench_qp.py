@@ -4,9 +4,9 @@ import math
 
 from dual_arm_control.core.exceptions import ConfigError, InputError, SolverError
 from dual_arm_control.core.geometry import rotation_exp
-from dual_arm_control.core.wrench_qp import (
-    ContactWrenchQP, grasp_matrix, pad_contact_geometry, PAD_ORDER, PadContact,
-    WrenchQPConfig)
+from dual_arm_control.core.pad_contact import (grasp_matrix, pad_contact_geometry, PAD_ORDER,
+                                               PadContact)
+from dual_arm_control.core.wrench_qp import ContactWrenchQP, WrenchQPConfig
 import numpy as np
 import pytest
 

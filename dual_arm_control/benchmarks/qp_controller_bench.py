@@ -16,8 +16,9 @@ import time
 
 from dual_arm_control.core.geometry import rotation_exp
 from dual_arm_control.core.object_wrench import box_inertia, desired_object_wrench
+from dual_arm_control.core.pad_contact import pad_contact_geometry, PAD_ORDER
 from dual_arm_control.core.passive_control import PassiveController
-from dual_arm_control.core.wrench_qp import ContactWrenchQP, pad_contact_geometry, PAD_ORDER
+from dual_arm_control.core.wrench_qp import ContactWrenchQP
 from dual_arm_control.description.cell import arm_model, load_cell
 import numpy as np
 

@@ -9,15 +9,16 @@ release / retract motions. Time enters as dt; nothing reads a clock.
 
 from dataclasses import dataclass, field
 
+from dual_arm_control.core.approach import (impact_directions, support_height_below,
+                                            synchronised_arrival, TOSS_TASKS,
+                                            yield_to_single_contact)
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.contact import (ContactConfig, ContactDetector, FtBiasEstimator,
                                            FtCompensationConfig)
 from dual_arm_control.core.cooperative import CoordinationConfig
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.core.impact import (clearance_limited_direction, impact_direction,
-                                          impact_ds_velocity, impact_geometry, ImpactConfig,
-                                          max_impact_tilt)
+from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry, ImpactConfig
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
                                                 lift_velocity, LiftConfig, place_velocity,
                                                 PlaceConfig, release_velocity, toss_geometry,
@@ -35,8 +36,6 @@ from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  SpeedProfileConfig)
 from dual_arm_control.core.validation import check_range, check_vector, finite_array
 import numpy as np
-
-_TOSS_TASKS = (Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS)
 
 
 @dataclass(frozen=True)
@@ -251,6 +250,7 @@ class DualArmMotionGenerator:
                                        support_height_below(config, p_object))
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
+            commands = yield_to_single_contact(commands, contacts, frames)
         elif phase in (Phase.CONTACT, Phase.MANIPULATE):
             commands = self._carry(p_tools, R_tools, frames, object_velocity)
             self._release_object_velocity = object_velocity
@@ -258,7 +258,7 @@ class DualArmMotionGenerator:
             commands = self._open_hands(R_tools, frames)
         else:
             commands = self._standby(p_tools, R_tools)
-        toss = config.task in _TOSS_TASKS
+        toss = config.task in TOSS_TASKS
         return MotionOutput(
             phase=phase_output, commands=commands, object_velocity=object_velocity,
             object_angular_velocity=np.zeros(3), contacts=contacts, pad_forces=pad_forces,
@@ -275,7 +275,7 @@ class DualArmMotionGenerator:
         fields (which slow down near their targets) are capped by it.
         """
         config = self._config
-        if config.task in _TOSS_TASKS:
+        if config.task in TOSS_TASKS:
             task_speed = config.toss.toss_speed
         elif config.task is Task.PICK_AND_PLACE:
             task_speed = config.place.max_speed
@@ -286,7 +286,7 @@ class DualArmMotionGenerator:
         else:
             self._object_speed.reset(config.impact.impact_speed)
             speed = self._object_speed.speed
-        if config.task in _TOSS_TASKS:
+        if config.task in TOSS_TASKS:
             return boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity, speed)
         if config.task is Task.PICK_AND_PLACE:
             velocity = place_velocity(p_object, config.place, config.coordination)
@@ -306,6 +306,10 @@ class DualArmMotionGenerator:
         target_speed = reach_speed(distance, config.impact.impact_speed, config.speed)
         speed = self._reach_speed.update(target_speed, dt)
         velocity = boosted_coordinated_velocity(field_output.velocity, speed).reshape(2, 3)
+        normals = np.array([frames[arm].normal for arm in ARMS])
+        gaps = np.einsum('ij,ij->i', grasp_points - p_tools, normals)
+        velocity = synchronised_arrival(velocity, gaps, normals,
+                                        config.impact.synchronisation_distance)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)
@@ -365,36 +369,3 @@ class DualArmMotionGenerator:
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, target)
         return commands
-
-
-def object_motion_direction(config, p_world_object):
-    """Return the direction (3,) the task's object DS would move the object from p_world_object."""
-    if config.task in _TOSS_TASKS:
-        return toss_velocity(p_world_object, toss_geometry(config.toss,
-                                                           config.coordination)).velocity
-    if config.task is Task.PICK_AND_PLACE:
-        return place_velocity(p_world_object, config.place, config.coordination)
-    return lift_velocity(p_world_object, config.lift, config.coordination)
-
-
-def impact_directions(config, frames, object_velocity, support_height=None):
-    """
-    Return {arm: (3,)} unit impact directions: each face normal tilted toward the motion.
-
-    support_height [m]: height of the surface the box rests on; when given, a direction's rise
-    is limited so the pad's run-in clears it (clearance_limited_direction).
-    """
-    max_tilt = max_impact_tilt(config.impact)
-    directions = {}
-    for arm in ARMS:
-        direction = impact_direction(frames[arm].normal, object_velocity, max_tilt)
-        if support_height is not None:
-            direction = clearance_limited_direction(
-                direction, frames[arm].p_world_grasp[2] - support_height, config.impact)
-        directions[arm] = direction
-    return directions
-
-
-def support_height_below(config, p_world_object):
-    """Return the height [m] of the surface a resting, upright box centred at p rests on."""
-    return float(p_world_object[2]) - 0.5 * config.object_size[2]

@@ -30,6 +30,7 @@ import math
 
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import rotation_log
+from dual_arm_control.core.reachability import inverse_kinematics_step, pose_error
 from dual_arm_control.core.validation import check_range, check_vector
 import numpy as np
 
@@ -38,6 +39,8 @@ JOINTS = 7
 _INPUT_NAMES = ('q', 'dq', 'v_world_desired', 'w_world_desired', 'R_world_desired',
                 'contact_wrench')
 _INPUT_SHAPES = ((JOINTS,), (JOINTS,), (3,), (3,), (3, 3), (6,))
+# Damping of the posture's inverse-kinematics steps [(m or rad)^2].
+_POSTURE_IK_DAMPING = 1e-3
 _NO_WRENCH = np.zeros(6)
 _NO_WRENCH.flags.writeable = False
 
@@ -67,9 +70,16 @@ class PassiveControllerConfig:
     """d_n, joint damping in the null space, same on every joint [N m s/rad]."""
     null_space_error_limit: float = 0.4
     """Per-joint posture error saturation [rad]."""
-    elbow_lift_force: float = 10.0
+    elbow_lift_force: float = 0.0
     """Upward force on the elbow, applied in the null space [N]: of the postures that hold the
-    tool, the arm prefers the elbow-up one, which keeps the forearm off the tables."""
+    tool, the arm prefers the elbow-up one. Off by default: at 10 N it lifted the forearm off
+    the front table when placing but, leaking through the torque-level projector (not
+    dynamically consistent), doubled the contact-time gap of the impact in the twin."""
+    posture_tracking_step: float = 0.01
+    """Largest change of the null-space posture per control cycle [rad] as it follows an
+    inverse-kinematics solution of the DS's target pose within the joint limits (0: the posture
+    stays where it was set). The arm's redundancy then steers it to a configuration that can
+    hold the target, not into a joint limit on the way."""
     projector_damping: float = 1e-3
     """eps of the damped pseudo-inverse in the null-space projector [m, rad]."""
     hold_damping: tuple = (10.0, 10.0, 8.0, 8.0, 4.0, 2.0, 2.0)
@@ -88,6 +98,7 @@ class PassiveControllerConfig:
         check_range('projector_damping', self.projector_damping, 0.0, 1.0, '', low_open=True)
         check_range('null_space_damping', self.null_space_damping, 0.0, 1e3, 'N m s/rad')
         check_range('elbow_lift_force', self.elbow_lift_force, 0.0, 500.0, 'N')
+        check_range('posture_tracking_step', self.posture_tracking_step, 0.0, 1.0, 'rad')
         for name, unit in (('null_space_stiffness', 'N m/rad'), ('hold_damping', 'N m s/rad')):
             values = check_vector(name, getattr(self, name), JOINTS, unit)
             for index, value in enumerate(values):
@@ -226,6 +237,22 @@ class PassiveController:
             raise InputError(f'q_null must be {JOINTS} finite joint positions, got {q_null}')
         q_null.flags.writeable = False
         self.q_null = q_null
+
+    def track_posture(self, p_world_target, R_world_target):
+        """
+        Move the null-space posture one inverse-kinematics step toward the target tool pose.
+
+        The step starts from the posture itself (not the measured joints), is capped at
+        posture_tracking_step and keeps every joint within its limits.
+        """
+        if self.config.posture_tracking_step <= 0.0:
+            return
+        lower, upper = self.model.position_limits
+        error = pose_error(self.model, self.q_null, p_world_target, R_world_target)
+        posture = inverse_kinematics_step(self.model, np.array(self.q_null), error, lower, upper,
+                                          _POSTURE_IK_DAMPING, self.config.posture_tracking_step)
+        posture.flags.writeable = False
+        self.q_null = posture
 
     def null_space_torque(self, jacobian, q, dq):
         """Return N tau_null (7,) [N m]: posture and elbow-lift torques projected off the tool."""

@@ -1,19 +1,17 @@
 """
 Task phase machine of the grab-and-toss task (paper section II, Fig. 2).
 
-A pure state machine: update(inputs, dt) advances the time in phase by dt seconds, evaluates the
-transition of the current phase on the new inputs and returns a PhaseMachineOutput. At most one
-transition happens per update, so transition times are quantised to one update period whatever
-the rate. Phases:
+update(inputs, dt) advances the time in phase by dt seconds and takes at most one transition
+(quantised to one update period whatever the rate); it returns a PhaseMachineOutput. Phases:
 
     STANDBY --start--> REACH --both pads in contact--> CONTACT --settled--> MANIPULATE
+    REACH --one pad alone in contact for grasp_close_timeout--> RETRACT (grasp aborted)
     MANIPULATE --release condition--> RELEASE --pads free or open-hands time--> RETRACT
     RETRACT --both tools near standby--> STANDBY
 
 go_home from REACH jumps to RETRACT, from CONTACT/MANIPULATE to RELEASE (open the hands first);
-reset returns to STANDBY at once. Commands act on their rising edge, so a command held high for
-several updates acts once. All latches are cleared at every episode start (a release
-flag must not outlive its episode).
+reset returns to STANDBY at once. Commands act once, on their rising edge. All latches are
+cleared at every episode start (a release flag must not outlive its episode).
 """
 
 from dataclasses import dataclass, field
@@ -21,6 +19,7 @@ import enum
 
 from dual_arm_control.core.contact import ContactState
 from dual_arm_control.core.exceptions import ConfigError, InputError
+from dual_arm_control.core.release import TossRelease
 from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
 
@@ -63,10 +62,14 @@ class PhaseConfig:
     Fields:
         contact_settle_time: s, >= 0; both pads must stay in contact this long in CONTACT.
         single_contact_timeout: s, > 0; one pad in contact alone this long in REACH is reported.
-        release_tolerance: m, > 0; toss release when ||x_o - x_release|| <= this (paper 0.03 m).
-        release_plane_radius: m, > 0; crossing the release plane releases only within this
-            distance of the release path (the line through x_release along the release
-            velocity).
+        grasp_close_timeout: s, > 0; one pad in contact alone this long in REACH aborts the
+            grasp: RETRACT, event 'grasp_aborted' (the other pad will not arrive in time).
+        release_tolerance: m, > 0; the paper's 0.03 m: an object inside this sphere around
+            x_release that starts moving away from it is released.
+        release_plane_radius: m, > 0; a toss releases when the object reaches the plane through
+            x_release across the release velocity within this distance of the release path.
+        release_lead_time: s, >= 0; the plane is reached this much early (object speed times
+            it), for the time the pads take to come off the box.
         place_tolerance: m, > 0; place release when ||x_o - x_place|| <= this (0.012 m: the
             place target lies a few mm below the resting pose, so this is on the table) ...
         place_speed: m/s, > 0; ... and ||v_o|| < place_speed.
@@ -79,8 +82,10 @@ class PhaseConfig:
 
     contact_settle_time: float = 0.05
     single_contact_timeout: float = 0.2
+    grasp_close_timeout: float = 0.4
     release_tolerance: float = 0.03
     release_plane_radius: float = 0.10
+    release_lead_time: float = 0.0
     place_tolerance: float = 0.012
     place_speed: float = 0.1
     lift_tolerance: float = 0.03
@@ -90,7 +95,9 @@ class PhaseConfig:
 
     def __post_init__(self):
         check_range('contact_settle_time', self.contact_settle_time, 0.0, unit='s')
-        for name, unit in (('single_contact_timeout', 's'), ('release_tolerance', 'm'),
+        check_range('release_lead_time', self.release_lead_time, 0.0, 1.0, 's')
+        for name, unit in (('single_contact_timeout', 's'), ('grasp_close_timeout', 's'),
+                           ('release_tolerance', 'm'),
                            ('release_plane_radius', 'm'), ('place_tolerance', 'm'),
                            ('place_speed', 'm/s'), ('lift_tolerance', 'm'),
                            ('grasp_loss_timeout', 's'), ('open_hands_time', 's'),
@@ -217,7 +224,7 @@ class PhaseMachine:
         self._single_contact_time = None
         self._single_contact_reported = False
         self._grasp_loss_time = None
-        self._release_side_previous = None
+        self._toss_release = TossRelease()
         self._lift_reached = False
 
     def update(self, inputs, dt):
@@ -306,6 +313,13 @@ class PhaseMachine:
               and not self._single_contact_reported):
             self._single_contact_reported = True
             events.append(f"single_contact_timeout_{'left' if left else 'right'}")
+        if (self._single_contact_time is not None
+                and self._single_contact_time >= self._config.grasp_close_timeout - 1e-9):
+            events.append('grasp_aborted')
+            return PhaseTransition(
+                Phase.REACH, Phase.RETRACT,
+                f"grasp did not close: only the {'left' if left else 'right'} pad touched for "
+                f'{self._single_contact_time:.3f} s')
         return None
 
     def _from_contact(self, inputs, dt, events):
@@ -314,7 +328,7 @@ class PhaseMachine:
                                    'contact lost before the grasp settled')
         if self._time_in_phase >= self._config.contact_settle_time - 1e-9:
             self._grasp_loss_time = None
-            self._release_side_previous = None
+            self._toss_release.reset()
             events.append('grasp_settled')
             return PhaseTransition(Phase.CONTACT, Phase.MANIPULATE,
                                    f'both pads in contact for {self._time_in_phase:.3f} s')
@@ -352,22 +366,9 @@ class PhaseMachine:
                 return (f'object {distance:.3f} m from the place position at '
                         f'{speed:.3f} m/s')
             return None
-        p_world_offset = p_world_object - inputs.p_world_release
-        distance = np.linalg.norm(p_world_offset)
-        if distance <= config.release_tolerance:
-            return f'object {distance:.3f} m from the release position'
-        release_speed = np.linalg.norm(inputs.v_world_release)
-        if release_speed < 1e-6:
-            return None
-        direction = inputs.v_world_release / release_speed
-        along = float(p_world_offset @ direction)
-        lateral = float(np.linalg.norm(p_world_offset - along * direction))
-        previous_along = self._release_side_previous
-        self._release_side_previous = along
-        if (previous_along is not None and previous_along < 0.0 <= along
-                and lateral <= config.release_plane_radius):
-            return f'object crossed the release plane {lateral:.3f} m off the release path'
-        return None
+        return self._toss_release.reason(p_world_object, inputs.v_world_object,
+                                         inputs.p_world_release, inputs.v_world_release,
+                                         config)
 
     def _from_release(self, inputs, dt, events):
         if not (inputs.contact_left.in_contact or inputs.contact_right.in_contact):

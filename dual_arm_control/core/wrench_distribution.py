@@ -13,10 +13,10 @@ from dual_arm_control.core.exceptions import SolverError
 from dual_arm_control.core.geometry import cross3
 from dual_arm_control.core.object_wrench import (box_inertia, desired_object_wrench,
                                                  inertial_wrench, ObjectWrenchConfig)
+from dual_arm_control.core.pad_contact import pad_contact_geometry
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.validation import check_range
-from dual_arm_control.core.wrench_qp import (ContactWrenchQP, pad_contact_geometry,
-                                             WrenchQPConfig)
+from dual_arm_control.core.wrench_qp import ContactWrenchQP, WrenchQPConfig
 import numpy as np
 
 GRASPING_PHASES = (Phase.CONTACT, Phase.MANIPULATE)

@@ -8,10 +8,10 @@ applicable) are listed in METRIC_KEYS; README.md documents them.
 from pathlib import Path
 
 from dual_arm_control.contract import ARMS
+from dual_arm_control.core.approach import (impact_directions, object_motion_direction,
+                                            support_height_below)
 from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.core.motion_generator import (impact_directions, object_motion_direction,
-                                                    support_height_below)
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.graph import EPISODE_START_TIME

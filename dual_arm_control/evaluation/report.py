@@ -2,7 +2,8 @@
 docs/results.md from the experiments' JSON files: our numbers beside the paper's, plots linked.
 
 Reads RESULTS/<experiment>/results.json (dual_arm_experiment), RESULTS/robustness/summary.json
-(dual_arm_eval) and RESULTS/robustness/displaced/metrics.json when present; a missing file is
+(dual_arm_eval), RESULTS/robustness/displaced/metrics.json and the catalogue batches
+(CATALOGUE_FOLDERS) when present; a missing file is
 reported as not run. Nothing in the report is typed by hand.
 """
 
@@ -12,7 +13,9 @@ from pathlib import Path
 
 from dual_arm_control.evaluation.paper_results import EXPERIMENTS, RESULTS_FILE
 from dual_arm_control.evaluation.report_format import MISSING, number, table
-from dual_arm_control.evaluation.report_sections import (fast_toss_section, headline_rows,
+from dual_arm_control.evaluation.report_sections import (CATALOGUE_FOLDERS,
+                                                         catalogue_section, fast_toss_section,
+                                                         headline_rows,
                                                          place_vs_toss_section,
                                                          robustness_section,
                                                          toss_to_target_section,
@@ -27,6 +30,11 @@ def load_results(results_dir):
         loaded[name] = _read(results_dir / name / RESULTS_FILE)
     loaded['robustness'] = _read(results_dir / 'robustness' / 'summary.json')
     loaded['displaced'] = _read(results_dir / 'robustness' / 'displaced' / 'metrics.json')
+    loaded['catalogue'] = {
+        folder: (_read(results_dir / folder / 'summary.json'),
+                 [path.relative_to(results_dir).as_posix()
+                  for path in sorted((results_dir / folder).glob('*.png'))])
+        for folder in CATALOGUE_FOLDERS}
     loaded['robustness_plots'] = [
         path.relative_to(results_dir).as_posix() for folder in ('robustness',
                                                                 'robustness/displaced')
@@ -62,7 +70,7 @@ def render_report(results, link_root='results'):
         'Wall times: ' + (', '.join(f'{name} {wall}' for name, wall in walls) or MISSING) + '.',
         '']
     for section in (fast_toss_section, workspace_section, place_vs_toss_section,
-                    robustness_section, toss_to_target_section):
+                    robustness_section, catalogue_section, toss_to_target_section):
         lines += section(results, link_root)
     return '\n'.join(lines).rstrip() + '\n'
 

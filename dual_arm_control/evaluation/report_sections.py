@@ -292,6 +292,52 @@ def robustness_section(results, link_root):
     return out
 
 
+# dual_arm_eval batches over the whole object catalogue (config/scenarios/catalogue_random*.yaml).
+CATALOGUE_FOLDERS = ('robustness_catalogue', 'robustness_catalogue_place')
+CATALOGUE_METRICS = ('contact_time_gap', 'max_slip', 'impact_speed_left', 'impact_speed_right',
+                     'arm_collision_count', 'release_position_error', 'landing_error',
+                     'place_position_error', 'box_tilt_at_place')
+
+
+def failure_modes(failures):
+    """Return [(mode, count)], most frequent first: a failure's mode is its first reason."""
+    counts = {}
+    for item in failures:
+        first = str(item.get('reason', '')).split(';')[0].split(' (')[0].strip()
+        words = first.split()
+        if ' > ' in first:
+            mode = f'{words[0]} over its limit'
+        else:
+            mode = ' '.join(word for word in words if not word[0].isdigit())
+        counts[mode] = counts.get(mode, 0) + 1
+    return sorted(counts.items(), key=lambda entry: (-entry[1], entry[0]))
+
+
+def catalogue_section(results, link_root):
+    """Experiment 4b (dual_arm_eval): every catalogue box, placed and yawed at random."""
+    out = ['## 4b. Robustness over the object catalogue (dual_arm_eval)', '']
+    for folder in CATALOGUE_FOLDERS:
+        summary, plots = results.get('catalogue', {}).get(folder, (None, []))
+        if summary is None:
+            out += [f'_Not run: `{folder}/summary.json` is missing._', '']
+            continue
+        metrics = summary.get('metrics', {})
+        rows = [(key, *(number(metrics[key].get(stat), 4) for stat in ('median', 'p95', 'max')),
+                 metrics[key].get('count', MISSING))
+                for key in CATALOGUE_METRICS if key in metrics]
+        modes = failure_modes(summary.get('failures', []))
+        out += [f'### `{summary.get("scenario")}`', '',
+                f'{summary.get("trials")} trials, runner {summary.get("runner")}, seed '
+                f'{summary.get("seed")}: success rate '
+                f'{number(summary.get("success_rate"), 1, 100.0, "%")}.', '',
+                table(('metric', 'median', 'p95', 'max', 'count'), rows), '',
+                'Failure modes (first reason of each failed trial): '
+                + ('none' if not modes else '; '.join(f'{mode}: {count}'
+                                                      for mode, count in modes)) + '.', '']
+        out += image_links(plots, link_root) + ['']
+    return out
+
+
 def toss_to_target_section(results, link_root):
     """Experiment 5: landing error over a grid of targets."""
     ttt = results['toss_to_target']

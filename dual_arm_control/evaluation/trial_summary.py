@@ -15,6 +15,10 @@ from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
 import numpy as np
 
 
+# A tool that never moved farther than this from its start did not reach [m].
+STANDBY_DRIFT = 0.01
+
+
 @dataclass(frozen=True)
 class TrialOutcome:
     """What one trial left: its metrics dict, or None and the reason it produced none."""
@@ -80,7 +84,10 @@ def failure_reason(task, metrics):
         reasons.append(f'{collisions} arm collisions (first: {" - ".join(first.get("geoms", []))} '
                        f'at {first.get("t", float("nan")):.3f} s)')
     gap = metrics.get('contact_time_gap')
-    if gap is None:
+    drifts = [metrics.get(f'max_tool_drift_{arm}') for arm in ('left', 'right')]
+    if gap is None and all(drift is not None and drift < STANDBY_DRIFT for drift in drifts):
+        reasons.append('no reach: the arms stayed at standby (grasp refused as out of reach)')
+    elif gap is None:
         reasons.append('no contact of both pads')
     elif gap > CONTACT_GAP_LIMIT:
         reasons.append(_exceeds('contact_time_gap', gap, CONTACT_GAP_LIMIT, 's'))

@@ -175,7 +175,7 @@ class MotionGeneratorStep:
             reason = f'grasp out of reach: {self.grasp_plan.reason}'
             self.refusals.refuse('unreachable_grasp', reason)
             return reason
-        self._generator.set_grasp_offset((self.grasp_plan.shift, 0.0, 0.0))
+        self._generator.set_grasp_offset(self.grasp_plan.offset)
         return ''
 
 

@@ -13,8 +13,9 @@ nothing: no track yet, track lost, or the object at rest (the restart takes the 
 and zero velocity). While the object moves the change stays pending.
 """
 
+from dual_arm_control.core.estimate import MeasurementOutcome
 from dual_arm_control.core.exceptions import InputError
-from dual_arm_control.core.tracker import MeasurementOutcome, ObjectTracker
+from dual_arm_control.core.tracker import ObjectTracker
 from dual_arm_control.runtime.inputs import RefusalCounter
 from dual_arm_control.runtime.signals import no_object_state, ObjectState, pose_sample
 from dual_arm_control.runtime.timing import NANOSECONDS_PER_SECOND, seconds_to_ns

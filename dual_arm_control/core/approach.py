@@ -1,0 +1,101 @@
+"""
+Where and how the pads approach the box: impact directions, the support's clearance, yielding.
+
+The per-tick geometry of the reach with impact around eqs. 1-6: each pad's impact direction (its
+face normal tilted toward the object's task motion, its rise limited so the run-in clears the
+surface the box rests on), and the yield of a pad that touches its face before the other.
+"""
+
+from dataclasses import replace
+
+from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.impact import (clearance_limited_direction, impact_direction,
+                                          max_impact_tilt)
+from dual_arm_control.core.manipulation import (lift_velocity, place_velocity, toss_geometry,
+                                                toss_velocity)
+from dual_arm_control.core.phases import Task
+import numpy as np
+
+TOSS_TASKS = (Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS)
+
+
+def synchronised_arrival(velocity, gaps, normals, horizon, slowest=0.3):
+    """
+    Return velocity (2, 3) [m/s], the arm that would touch first slowed to touch with the other.
+
+    The coordinated DS (eq. 4) synchronises the commanded motions; the arms track them with
+    different lags and approach their faces at different angles, so the measured gaps to the
+    face planes (2,) [m] (along the inward normals (2, 3)) over the commanded closing speeds
+    give each arm's time to contact. Once the later arm is within horizon [m] of its face the
+    earlier arm's velocity is scaled by the ratio of the two times (blended in linearly over
+    the outer half of the horizon, never below slowest). Otherwise velocity is unchanged.
+    """
+    velocity = np.asarray(velocity, dtype=float)
+    closing = np.einsum('ij,ij->i', velocity, normals)
+    if np.any(closing <= 1e-6) or np.any(np.asarray(gaps) <= 0.0):
+        return velocity
+    times = np.asarray(gaps, dtype=float) / closing
+    later = int(np.argmax(times))
+    earlier = 1 - later
+    if gaps[later] >= horizon or times[earlier] >= times[later]:
+        return velocity
+    weight = min(1.0, 2.0 * (1.0 - gaps[later] / horizon))
+    scale = max(1.0 - weight * (1.0 - times[earlier] / times[later]), slowest)
+    synchronised = velocity.copy()
+    synchronised[earlier] *= scale
+    return synchronised
+
+
+def yield_to_single_contact(commands, contacts, frames):
+    """
+    Return commands where a pad that touches its face alone stops pushing into it.
+
+    While only one pad is in contact during the reach, that arm's velocity loses its component
+    along the contact normal (into the box), so it waits at the face for the other pad instead
+    of pushing the box away from it; its tangential motion and orientation are kept.
+    """
+    touching = [arm for arm in ARMS if contacts[arm].in_contact]
+    if len(touching) != 1:
+        return commands
+    arm = touching[0]
+    command = commands[arm]
+    normal = frames[arm].normal
+    into_face = float(command.v_world @ normal)
+    if into_face <= 0.0:
+        return commands
+    yielded = dict(commands)
+    yielded[arm] = replace(command, v_world=command.v_world - into_face * normal)
+    return yielded
+
+
+def object_motion_direction(config, p_world_object):
+    """Return the direction (3,) the task's object DS would move the object from p_world_object."""
+    if config.task in TOSS_TASKS:
+        return toss_velocity(p_world_object, toss_geometry(config.toss,
+                                                           config.coordination)).velocity
+    if config.task is Task.PICK_AND_PLACE:
+        return place_velocity(p_world_object, config.place, config.coordination)
+    return lift_velocity(p_world_object, config.lift, config.coordination)
+
+
+def impact_directions(config, frames, object_velocity, support_height=None):
+    """
+    Return {arm: (3,)} unit impact directions: each face normal tilted toward the motion.
+
+    support_height [m]: height of the surface the box rests on; when given, a direction's rise
+    is limited so the pad's run-in clears it (clearance_limited_direction).
+    """
+    max_tilt = max_impact_tilt(config.impact)
+    directions = {}
+    for arm in ARMS:
+        direction = impact_direction(frames[arm].normal, object_velocity, max_tilt)
+        if support_height is not None:
+            direction = clearance_limited_direction(
+                direction, frames[arm].p_world_grasp[2] - support_height, config.impact)
+        directions[arm] = direction
+    return directions
+
+
+def support_height_below(config, p_world_object):
+    """Return the height [m] of the surface a resting, upright box centred at p rests on."""
+    return float(p_world_object[2]) - 0.5 * config.object_size[2]
