@@ -10,7 +10,7 @@ import math
 
 from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.validation import check_range, check_vector
+from dual_arm_control.core.validation import check_range, frozen_vector
 import numpy as np
 
 # Randomization keys given as [low, high] ranges: unit, bounds, whether 0 is allowed.
@@ -56,25 +56,22 @@ class Randomization:
                 raise ConfigError(f'randomization.object_types must be distinct catalogue '
                                   f'names, got {self.object_types!r}')
             object.__setattr__(self, 'object_types', types)
-        position = check_vector('randomization.object_position', self.object_position, 2,
-                                'm').copy()
+        position = frozen_vector('randomization.object_position', self.object_position, 2, 'm')
         for half_range in position:
             check_range('randomization.object_position', half_range, 0.0, 0.5, 'm')
-        position.setflags(write=False)
         object.__setattr__(self, 'object_position', position)
         check_range('randomization.object_yaw', self.object_yaw, 0.0, math.pi, 'rad')
         for name, (unit, low, high, zero_allowed) in RANDOMIZED_RANGES.items():
             value = getattr(self, name)
             if value is None:
                 continue
-            interval = check_vector(f'randomization.{name}', value, 2, unit).copy()
+            interval = frozen_vector(f'randomization.{name}', value, 2, unit)
             for bound in interval:
                 check_range(f'randomization.{name}', bound, low, high, unit,
                             low_open=not zero_allowed)
             if interval[0] > interval[1]:
                 raise ConfigError(f'randomization.{name} must be [low, high] with low <= high, '
                                   f'got {interval.tolist()}')
-            interval.setflags(write=False)
             object.__setattr__(self, name, interval)
 
 

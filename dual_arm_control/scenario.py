@@ -18,7 +18,7 @@ from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.robot_model import ArmModel, JOINTS_PER_ARM
-from dual_arm_control.core.validation import check_range, check_vector
+from dual_arm_control.core.validation import check_range, frozen_vector
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.randomization import (Randomization, randomization_document,
                                             read_randomization)
@@ -30,12 +30,6 @@ import numpy as np
 TASKS = ('pick_and_toss', 'pick_and_place', 'pick_and_lift', 'place_toss', 'toss_to_target')
 TOSS_TASKS = ('pick_and_toss', 'toss_to_target')
 PLACE_TASKS = ('pick_and_place', 'place_toss')
-
-
-def _frozen_vector(name, value, size, unit):
-    array = check_vector(name, value, size, unit).copy()
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True)
@@ -57,13 +51,13 @@ class ObjectConfig:
     yaw: float = 0.0
 
     def __post_init__(self):
-        object.__setattr__(self, 'size', _frozen_vector('object.size', self.size, 3, 'm'))
+        object.__setattr__(self, 'size', frozen_vector('object.size', self.size, 3, 'm'))
         if np.any(self.size <= 0.0):
             raise ConfigError(f'object.size must be positive [m], got {self.size.tolist()}')
         check_range('object.mass', self.mass, 0.0, math.inf, 'kg', low_open=True)
         check_range('object.friction', self.friction, 0.0, math.inf, '', low_open=True)
         object.__setattr__(self, 'position',
-                           _frozen_vector('object.position', self.position, 3, 'm'))
+                           frozen_vector('object.position', self.position, 3, 'm'))
         check_range('object.yaw', self.yaw, -math.pi, math.pi, 'rad')
 
 
@@ -76,9 +70,9 @@ class ReleaseConfig:
 
     def __post_init__(self):
         object.__setattr__(self, 'position',
-                           _frozen_vector('release.position', self.position, 3, 'm'))
+                           frozen_vector('release.position', self.position, 3, 'm'))
         object.__setattr__(self, 'velocity',
-                           _frozen_vector('release.velocity', self.velocity, 3, 'm/s'))
+                           frozen_vector('release.velocity', self.velocity, 3, 'm/s'))
 
 
 @dataclass(frozen=True)
@@ -104,7 +98,7 @@ class Perturbation:
 
     def __post_init__(self):
         check_range('time', self.time, 0.0, math.inf, 's')
-        object.__setattr__(self, 'object_displacement', _frozen_vector(
+        object.__setattr__(self, 'object_displacement', frozen_vector(
             'object_displacement', self.object_displacement, 3, 'm'))
 
 

@@ -6,14 +6,8 @@ The twin (sim_bridge.twin) draws its noise, bias, latency and dropouts from thes
 
 from dataclasses import dataclass, field, fields
 
-from dual_arm_control.core.validation import check_range, check_vector
+from dual_arm_control.core.validation import check_range, frozen_vector
 import numpy as np
-
-
-def _frozen_vector(name, value, size, unit):
-    array = check_vector(name, value, size, unit).copy()
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True)
@@ -61,9 +55,9 @@ class FtConfig:
         check_range('force_noise', self.force_noise, 0.0, 100.0, 'N')
         check_range('torque_noise', self.torque_noise, 0.0, 10.0, 'N m')
         object.__setattr__(self, 'force_bias',
-                           _frozen_vector('force_bias', self.force_bias, 3, 'N'))
+                           frozen_vector('force_bias', self.force_bias, 3, 'N'))
         object.__setattr__(self, 'torque_bias',
-                           _frozen_vector('torque_bias', self.torque_bias, 3, 'N m'))
+                           frozen_vector('torque_bias', self.torque_bias, 3, 'N m'))
 
 
 @dataclass(frozen=True)

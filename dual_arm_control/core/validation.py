@@ -65,6 +65,13 @@ def check_vector(name, value, size, unit=''):
     return array
 
 
+def frozen_vector(name, value, size, unit=''):
+    """Return check_vector(...) as a read-only copy, for the fields of frozen configs."""
+    array = check_vector(name, value, size, unit).copy()
+    array.setflags(write=False)
+    return array
+
+
 def finite_array(name, value, shape=None):
     """Return value as a float array, raising InputError if it is not finite or misshaped."""
     array = np.asarray(value, dtype=float)
