@@ -9,6 +9,7 @@ from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import experiment_metrics, experiment_tosses, experiments
 from dual_arm_control.evaluation import paper_results, report, workspace
+from dual_arm_control.evaluation.report_sections import CATALOGUE_FOLDERS
 import numpy as np
 import pytest
 
@@ -271,7 +272,7 @@ def test_report_renders_the_numbers_from_the_json_files(tmp_path):
 
 def test_report_of_an_empty_results_directory(tmp_path):
     text = report.render_report(report.load_results(tmp_path))
-    assert text.count('Not run') == len(paper_results.EXPERIMENTS) + 1
+    assert text.count('Not run') == len(paper_results.EXPERIMENTS) + 1 + len(CATALOGUE_FOLDERS)
 
 
 def test_command_line_refuses_bad_values(capsys):

@@ -251,8 +251,11 @@ TICK_PERIOD_NS = 6_000_000  # first 2 ms cycle at least 5 ms after the previous 
 def controller_node(lockstep):
     """Return a factory of the left arm's controller node."""
     def build(context):
+        # The posture stays put (no tracking of the DS target): these tests check the shell's
+        # translation against one core controller call; test_robust_grab covers the tracking.
         return PassiveControllerNode(context=context, namespace='/left', parameter_overrides=[
-            Parameter('arm', value='left'), Parameter('lockstep', value=lockstep)])
+            Parameter('arm', value='left'), Parameter('lockstep', value=lockstep),
+            Parameter('posture_tracking_step', value=0.0)])
     return build
 
 
@@ -305,6 +308,7 @@ def expected_torque(q, dq, command, wrench, config=None):
     """Return the core controller's torque for a command (v, w, R) sent through a message."""
     v_world, w_world, R_world = command
     R_received = quat_xyzw_to_matrix(matrix_to_quat_xyzw(R_world))
+    config = config or PassiveControllerConfig(posture_tracking_step=0.0)
     controller = PassiveController(arm_model('left', CELL), Q_HOME_LEFT, config)
     return controller.torque_command(q, dq, v_world, w_world, R_received, wrench).torque
 
@@ -433,7 +437,7 @@ def test_controller_parameters(controller):
     controller.send('/left/joint_states', joint_state(0, q, dq))
     assert controller.spin_until(lambda: len(commands) == 1)
     assert node.controller.config.damping_along == 250.0
-    config = PassiveControllerConfig(damping_along=250.0)
+    config = PassiveControllerConfig(damping_along=250.0, posture_tracking_step=0.0)
     np.testing.assert_allclose(efforts(commands[0]),
                                expected_torque(q, dq, command, wrench, config), atol=1e-9)
 

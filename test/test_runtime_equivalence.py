@@ -46,11 +46,19 @@ def cell():
 
 
 def bag_phases(bag):
-    """Return [(stamp [s], phase)] of every /dual_arm/phase message of a bag."""
+    """
+    Return [(stamp [s], phase)] of the /dual_arm/phase messages of a bag, one per DS tick.
+
+    A tick the bridge republished in lockstep (no answer within its republish period, e.g.
+    while the motion generator checks the grasp's reachability) is answered again with the
+    same message; it is counted once.
+    """
     phases = []
     for message in BagReader(bag).messages([contract.PHASE.name]):
         msg = deserialize_message(message.data, DiagnosticArray)
-        phases.append((stamp_ns(msg.header.stamp) * 1e-9, msg.status[0].message))
+        entry = (stamp_ns(msg.header.stamp) * 1e-9, msg.status[0].message)
+        if not phases or phases[-1] != entry:
+            phases.append(entry)
     return phases
 
 
