@@ -3,8 +3,8 @@ Arm collisions in the twin: MuJoCo contacts of an arm with anything but the box 
 
 Every arm link collides with the pallet, the tables, the floor, the box and the other arm's
 links (sim_bridge.scene's collision bits); the pads touch the box through their explicit pairs.
-A collision is counted when a geom pair starts touching, so a link resting on the pallet for a
-second counts once.
+A collision is counted when a geom pair starts touching, checked once per FRI cycle (the end of
+its physics steps), so a link resting on the pallet for a second counts once.
 """
 
 from dataclasses import dataclass
@@ -44,11 +44,13 @@ class ArmCollisionMonitor:
         """Return the ArmCollisions that touch in data now and did not at the previous call."""
         pairs = frozenset()
         if data.ncon:
-            first, second = data.contact.geom1, data.contact.geom2
-            involved = self._arm_geoms[first] | self._arm_geoms[second]
-            pairs = frozenset((int(a), int(b)) if a < b else (int(b), int(a))
-                              for a, b in zip(first[involved], second[involved]))
-            pairs -= self._pad_object_pairs
+            geoms = data.contact.geom
+            involved = self._arm_geoms[geoms].any(axis=1)
+            if involved.any():
+                pairs = frozenset((int(a), int(b)) if a < b else (int(b), int(a))
+                                  for a, b in geoms[involved]) - self._pad_object_pairs
+        if not pairs and not self.colliding_pairs:
+            return []
         started = pairs - self.colliding_pairs
         self.colliding_pairs = pairs
         return [ArmCollision(time, (self._model.geom(a).name, self._model.geom(b).name))

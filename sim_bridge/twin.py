@@ -189,13 +189,12 @@ class DualArmTwin:
             clamped[arm] = bool(np.any(np.abs(commands[arm]) > limit))
             applied[arm] = np.clip(commands[arm], -limit, limit)
             self.data.ctrl[self.index.arms[arm].actuators] = applied[arm]
-        collisions = []
         for _ in range(self._substeps):
             self._apply_due_perturbations()
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
             self._sample_mocap()
-            collisions.extend(self._collisions.update(self.data, self.time))
+        collisions = self._collisions.update(self.data, self.time)
         self._update_ft()
         self._collision_log.extend(collisions)
         return StepReport(clamped=clamped, applied=applied, arm_collisions=tuple(collisions))

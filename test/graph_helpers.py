@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 
+from dual_arm_control.nodes.process import REALTIME_PRIORITY_VARIABLE
 import rclpy
 from rclpy.experimental import EventsExecutor
 
@@ -59,24 +60,33 @@ class ProcessGroup:
     def __exit__(self, *exc_info):
         self.stop_all()
 
-    def start(self, label, executable, ros_arguments=()):
-        """Start a console script with `--ros-args ...`; output goes to <log_dir>/<label>.log."""
+    def start(self, label, executable, ros_arguments=(), realtime_priority=None):
+        """
+        Start a console script with `--ros-args ...`; output goes to <log_dir>/<label>.log.
+
+        realtime_priority: the SCHED_FIFO priority the node takes, as dual_arm_bringup gives
+        its nodes in realtime mode (None: normal scheduling).
+        """
         log_file = open(self._log_dir / f'{label}.log', 'w')
         self._log_files.append(log_file)
         argv = [str(SCRIPTS_DIR / executable), '--ros-args', *ros_arguments]
+        env = self._env
+        if realtime_priority is not None:
+            env = dict(env, **{REALTIME_PRIORITY_VARIABLE: str(realtime_priority)})
         self._processes[label] = subprocess.Popen(
-            argv, stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-            env=self._env)
+            argv, stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env)
         return self._processes[label]
 
-    def start_bridge(self, **parameters):
+    def start_bridge(self, realtime_priority=None, **parameters):
         """Start sim_bridge with the given parameters."""
-        return self.start('sim_bridge', 'sim_bridge', parameter_arguments(**parameters))
+        return self.start('sim_bridge', 'sim_bridge', parameter_arguments(**parameters),
+                          realtime_priority)
 
-    def start_controller(self, arm, **parameters):
+    def start_controller(self, arm, realtime_priority=None, **parameters):
         """Start a gravity_comp_controller for one arm in its namespace."""
         return self.start(f'{arm}_controller', 'gravity_comp_controller',
-                          ['-r', f'__ns:=/{arm}', *parameter_arguments(arm=arm, **parameters)])
+                          ['-r', f'__ns:=/{arm}', *parameter_arguments(arm=arm, **parameters)],
+                          realtime_priority)
 
     def wait(self, label, timeout):
         """Wait for a process to exit; return its exit code (None after the timeout)."""
