@@ -47,7 +47,7 @@ class TrajectoryRecorder:
         for name in OBJECT_FIELDS:
             self._rows[name] = []
         self.counters = dict.fromkeys(COUNTER_FIELDS, 0)
-        self._collisions = ()
+        self._twin = None
 
     def __len__(self):
         return len(self._rows['t'])
@@ -55,7 +55,7 @@ class TrajectoryRecorder:
     def append(self, twin, applied_torques):
         """Append the twin's current ground truth; applied_torques = {arm: (7,)} last applied."""
         self._rows['t'].append(twin.time)
-        self._collisions = twin.arm_collisions
+        self._twin = twin
         for arm in ARMS:
             joints = twin.joint_state(arm)
             tool_position, _ = twin.tool_pose(arm)
@@ -81,9 +81,10 @@ class TrajectoryRecorder:
             data[f'{arm}_pad_contact'] = data[f'{arm}_pad_contact'].astype(bool)
         for name, value in self.counters.items():
             data[name] = np.array(value)
-        data['arm_collision_times'] = np.array([item.time for item in self._collisions],
+        collisions = () if self._twin is None else self._twin.arm_collisions
+        data['arm_collision_times'] = np.array([item.time for item in collisions],
                                                dtype=float)
-        data['arm_collision_geoms'] = np.array([item.geoms for item in self._collisions],
+        data['arm_collision_geoms'] = np.array([item.geoms for item in collisions],
                                                dtype=str).reshape(-1, 2)
         return data
 

@@ -306,10 +306,11 @@ class DualArmMotionGenerator:
         target_speed = reach_speed(distance, config.impact.impact_speed, config.speed)
         speed = self._reach_speed.update(target_speed, dt)
         velocity = boosted_coordinated_velocity(field_output.velocity, speed).reshape(2, 3)
-        normals = np.array([frames[arm].normal for arm in ARMS])
-        gaps = np.einsum('ij,ij->i', grasp_points - p_tools, normals)
-        velocity = synchronised_arrival(velocity, gaps, normals,
-                                        config.impact.synchronisation_distance)
+        if config.impact.synchronisation_distance > 0.0:
+            normals = np.array([frames[arm].normal for arm in ARMS])
+            gaps = np.einsum('ij,ij->i', grasp_points - p_tools, normals)
+            velocity = synchronised_arrival(velocity, gaps, normals,
+                                            config.impact.synchronisation_distance)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)

@@ -7,6 +7,7 @@ the success criteria a finished trial missed.
 
 from dataclasses import dataclass
 
+from dual_arm_control.core.arms import ARMS
 from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, LANDING_LIMIT, PLACE_LIMIT,
                                                  PLACE_SPEED_LIMIT, PLACE_TILT_LIMIT,
                                                  RELEASE_POSITION_LIMIT, RELEASE_VELOCITY_LIMIT,
@@ -84,7 +85,7 @@ def failure_reason(task, metrics):
         reasons.append(f'{collisions} arm collisions (first: {" - ".join(first.get("geoms", []))} '
                        f'at {first.get("t", float("nan")):.3f} s)')
     gap = metrics.get('contact_time_gap')
-    drifts = [metrics.get(f'max_tool_drift_{arm}') for arm in ('left', 'right')]
+    drifts = [metrics.get(f'max_tool_drift_{arm}') for arm in ARMS]
     if gap is None and all(drift is not None and drift < STANDBY_DRIFT for drift in drifts):
         reasons.append('no reach: the arms stayed at standby (grasp refused as out of reach)')
     elif gap is None:
