@@ -5,7 +5,7 @@ import math
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.speed_shaping import (
     boosted_coordinated_velocity, boosted_velocity, profile_speed, reach_speed,
-    saturated_velocity, speed_blend_weight, SpeedFilter, SpeedProfileConfig)
+    saturated_velocity, speed_blend_weight, SpeedErrorIntegrator, SpeedFilter, SpeedProfileConfig)
 import numpy as np
 import pytest
 
@@ -91,3 +91,28 @@ def test_speed_filter_rejects_bad_inputs():
 def test_config_rejects_bad_values_naming_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         SpeedProfileConfig(**{field: value})
+
+
+def test_the_speed_loop_makes_up_a_lagging_tracker_without_turning_the_direction():
+    """A plant reaching 94 % of its command is brought to the desired speed, same direction."""
+    loop = SpeedErrorIntegrator(integral_gain=20.0, limit_ratio=0.25)
+    desired = np.array([0.8, 0.1, 0.4])
+    measured = np.zeros(3)
+    for _ in range(400):
+        command = loop.update(desired, measured, 0.005)
+        measured = 0.94 * command
+    assert np.linalg.norm(measured) == pytest.approx(np.linalg.norm(desired), rel=0.005)
+    assert np.cross(command, desired) == pytest.approx(np.zeros(3), abs=1e-12)
+
+
+def test_the_speed_loop_is_capped_and_forgets_on_reset():
+    """A stalled measurement cannot push the command beyond (1 + limit) times the DS speed."""
+    loop = SpeedErrorIntegrator(integral_gain=50.0, limit_ratio=0.25)
+    desired = np.array([0.0, 0.6, 0.0])
+    for _ in range(200):
+        command = loop.update(desired, np.zeros(3), 0.005)
+    assert np.linalg.norm(command) == pytest.approx(0.75)
+    loop.reset()
+    assert loop.update(desired, desired, 0.005) == pytest.approx(desired)
+    with pytest.raises(ConfigError):
+        SpeedErrorIntegrator(integral_gain=-1.0, limit_ratio=0.25)

@@ -39,12 +39,17 @@ class TossConfig:
         reference's 0.4 rho with rho = 0.35), delta_normal 0.04 m, delta_tangent 0.02 m and
         a radial ball of 0.30 m around x_t, which keeps the field along e1 positive through the
         release point and 0.1 m beyond.
+    speed_integral_gain [1/s], speed_correction_limit: the outer loop on the carried
+        object's speed shortfall (SpeedErrorIntegrator), capped to speed_correction_limit times
+        the desired speed. 0 turns the loop off.
     """
 
     release_position: tuple = (0.68, 0.0, 0.45)
     release_direction: tuple = (1.0, 0.0, 0.5)
     toss_speed: float = 0.85
     region: ModulationRegionConfig = _TOSS_REGION
+    speed_integral_gain: float = 20.0
+    speed_correction_limit: float = 0.25
 
     def __post_init__(self):
         check_vector('release_position', self.release_position, 3, 'm')
@@ -54,6 +59,8 @@ class TossConfig:
         check_range('toss_speed', self.toss_speed, 0.0, 3.0, 'm/s', low_open=True)
         if not isinstance(self.region, ModulationRegionConfig):
             raise ConfigError(f'region must be a ModulationRegionConfig, got {self.region!r}')
+        check_range('speed_integral_gain', self.speed_integral_gain, 0.0, 200.0, '1/s')
+        check_range('speed_correction_limit', self.speed_correction_limit, 0.0, 1.0)
 
 
 @dataclass(frozen=True)

@@ -32,8 +32,8 @@ from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, Phase
 from dual_arm_control.core.reachability import ReachabilityConfig
 from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  boosted_velocity, reach_speed,
-                                                 saturated_velocity, SpeedFilter,
-                                                 SpeedProfileConfig)
+                                                 saturated_velocity, SpeedErrorIntegrator,
+                                                 SpeedFilter, SpeedProfileConfig)
 from dual_arm_control.core.validation import check_range, check_vector, finite_array
 import numpy as np
 
@@ -173,6 +173,7 @@ class DualArmMotionGenerator:
         self._contact = {arm: ContactDetector(config.contact) for arm in ARMS}
         self._reach_speed = SpeedFilter(config.speed.time_constant)
         self._object_speed = SpeedFilter(config.toss_speed_time_constant)
+        self._toss_feedback = _toss_feedback(config.toss)
         self._standby_positions = np.asarray(config.standby_positions, dtype=float)
         self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
@@ -202,6 +203,7 @@ class DualArmMotionGenerator:
     def reconfigure(self, config):
         """Apply a new configuration at the next tick; the phase and filters are kept."""
         self._config = config
+        self._toss_feedback = _toss_feedback(config.toss)
         self._phase_machine.select_task(config.task)
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
@@ -245,7 +247,7 @@ class DualArmMotionGenerator:
         phase = phase_output.phase
         if phase_output.transition is not None and phase is Phase.REACH:
             self._reach_speed.reset(0.0)
-        object_velocity = self._object_velocity(p_object, phase, dt)
+        object_velocity = self._object_velocity(p_object, v_object, phase, dt)
         directions = impact_directions(config, frames, object_velocity,
                                        support_height_below(config, p_object))
         if phase is Phase.REACH:
@@ -266,13 +268,14 @@ class DualArmMotionGenerator:
             release_position=self._toss_geometry.release_position if toss else None,
             release_velocity=self._release_velocity if toss else None)
 
-    def _object_velocity(self, p_object, phase, dt):
+    def _object_velocity(self, p_object, v_object, phase, dt):
         """
         Return the desired object velocity (3,) m/s of the task's object DS (eqs. 7-9).
 
         After contact the object's speed rises from the impact speed to the task speed with
-        toss_speed_time_constant: the toss field is boosted to that speed, the place and lift
-        fields (which slow down near their targets) are capped by it.
+        toss_speed_time_constant: the toss field is boosted to that speed (and corrected by the
+        outer loop on the carried object's velocity error), the place and lift fields (which
+        slow down near their targets) are capped by it.
         """
         config = self._config
         if config.task in TOSS_TASKS:
@@ -281,13 +284,19 @@ class DualArmMotionGenerator:
             task_speed = config.place.max_speed
         else:
             task_speed = config.lift.max_speed
-        if phase in (Phase.CONTACT, Phase.MANIPULATE):
+        carried = phase in (Phase.CONTACT, Phase.MANIPULATE)
+        if carried:
             speed = self._object_speed.update(task_speed, dt)
         else:
             self._object_speed.reset(config.impact.impact_speed)
+            self._toss_feedback.reset()
             speed = self._object_speed.speed
         if config.task in TOSS_TASKS:
-            return boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity, speed)
+            velocity = boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity,
+                                        speed)
+            if phase is Phase.MANIPULATE:
+                return self._toss_feedback.update(velocity, v_object, dt)
+            return velocity
         if config.task is Task.PICK_AND_PLACE:
             velocity = place_velocity(p_object, config.place, config.coordination)
         else:
@@ -370,3 +379,8 @@ class DualArmMotionGenerator:
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, target)
         return commands
+
+
+def _toss_feedback(toss):
+    """Return the SpeedErrorIntegrator of a TossConfig."""
+    return SpeedErrorIntegrator(toss.speed_integral_gain, toss.speed_correction_limit)

@@ -126,3 +126,39 @@ class SpeedFilter:
             raise InputError(f'dt must be finite and >= 0 s, got {dt!r}')
         self.speed += (1.0 - math.exp(-dt / self.time_constant)) * (target_speed - self.speed)
         return self.speed
+
+
+class SpeedErrorIntegrator:
+    """
+    Outer speed loop on a DS output: v_cmd = v_d (1 + k_i int(|v_d| - v . v_d/|v_d|) dt / |v_d|).
+
+    The passive controller follows the desired velocity with a lag that grows with the load
+    (the object's weight and inertia), so a carried object leaves the hands slower than
+    planned. Integrating the tracked object's speed shortfall along the DS direction and adding
+    it to the DS speed removes that lag without turning the DS direction. The correction is
+    capped to +-limit_ratio |v_d| so a bad estimate cannot run away.
+    """
+
+    def __init__(self, integral_gain, limit_ratio):
+        """Create the loop: integral_gain [1/s], limit_ratio [-] of the desired speed."""
+        self.integral_gain = check_range('integral_gain', integral_gain, 0.0, 200.0, '1/s')
+        self.limit_ratio = check_range('limit_ratio', limit_ratio, 0.0, 1.0)
+        self.correction = 0.0
+
+    def reset(self):
+        """Forget the integrated shortfall."""
+        self.correction = 0.0
+
+    def update(self, desired, measured, dt):
+        """Return the corrected velocity (3,) [m/s] after integrating the shortfall over dt [s]."""
+        if not (math.isfinite(dt) and dt >= 0.0):
+            raise InputError(f'dt must be finite and >= 0 s, got {dt!r}')
+        desired = np.asarray(desired, dtype=float)
+        speed = math.sqrt(desired @ desired)
+        if speed <= _MIN_SPEED:
+            return desired
+        shortfall = speed - float(np.asarray(measured, dtype=float) @ desired) / speed
+        limit = self.limit_ratio * speed
+        self.correction = min(max(self.correction + self.integral_gain * dt * shortfall, -limit),
+                              limit)
+        return desired * (1.0 + self.correction / speed)

@@ -23,7 +23,8 @@ import numpy as np
 METRIC_KEYS = (
     'success', 't_contact_left', 't_contact_right', 'contact_time_gap', 'impact_speed_left',
     'impact_speed_right', 't_release', 'release_position', 'release_position_error',
-    'release_velocity', 'release_velocity_error', 'landing_position', 'landing_error',
+    'release_velocity', 'release_velocity_error', 'release_speed_error',
+    'release_direction_error', 'landing_position', 'landing_error',
     'cycle_time', 'place_position_error', 'energy_left', 'energy_right', 'max_slip',
     'torque_clamp_count', 'refused_message_count', 'arm_collision_count', 'box_tilt_at_place',
 )
@@ -134,6 +135,9 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         if planned is not None:
             result['release_position_error'] = float(np.linalg.norm(p_release - planned[0]))
             result['release_velocity_error'] = metrics.relative_velocity_error(
+                v_release, planned[1])
+            result['release_speed_error'] = metrics.relative_speed_error(v_release, planned[1])
+            result['release_direction_error'] = metrics.direction_error_degrees(
                 v_release, planned[1])
         height = scenario.object.size[2]
         landed = metrics.landing_index(t, data['object_position'], release + 1, 0.5 * height,

@@ -148,6 +148,19 @@ def relative_velocity_error(velocity, desired_velocity):
                  / np.linalg.norm(desired_velocity))
 
 
+def relative_speed_error(velocity, desired_velocity):
+    """Return ||v|| / ||v_d|| - 1 [-]: signed, negative when slower than desired."""
+    return float(np.linalg.norm(velocity) / np.linalg.norm(desired_velocity) - 1.0)
+
+
+def direction_error_degrees(velocity, desired_velocity):
+    """Return the angle [deg] between v and v_d."""
+    velocity, desired_velocity = np.asarray(velocity), np.asarray(desired_velocity)
+    cosine = velocity @ desired_velocity / (np.linalg.norm(velocity)
+                                            * np.linalg.norm(desired_velocity))
+    return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
+
+
 def tilt_degrees(object_quat_xyzw):
     """Return the angle [deg] between the object's z axis and the world's vertical."""
     z_axis = quat_xyzw_to_matrix(object_quat_xyzw)[:, 2]
