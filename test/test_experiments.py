@@ -216,21 +216,24 @@ def _synthetic_results(root):
     place['cycle_time'] = {'mean': 4.0, 'std': 0.1, 'count': 1}
     toss = {key: dict(stats) for key in ('cycle_time', 'energy', 'max_slip')}
     toss['energy'] = {'mean': 120.0, 'std': 0.0, 'count': 1}
+    toss['signed_work'] = {'mean': 120.0, 'std': 0.0, 'count': 1}
     toss['cycle_time'] = {'mean': 3.0, 'std': 0.1, 'count': 1}
     for entry in (place, toss):
         entry.update(successes=1, runs=1)
     summary = [{'speed': 1.0, 'pick_and_place': place, 'pick_and_toss': toss,
                 'cycle_time_reduction_percent': 25.0, 'energy_reduction_percent': 12.345,
-                'positive_work_reduction_percent': 7.5,
+                'positive_work_reduction_percent': 7.5, 'signed_work_reduction_percent': 26.5,
                 'energy_without_gravity_reduction_percent': 21.0}]
     probe = {'speed': 1.0, 'impact_speed_setting': 0.15, 'success': False, 'cycle_time': None,
-             'max_slip': 0.05, 'place_position_error': 0.03, 'energy': 150.0}
+             'max_slip': 0.05, 'place_position_error': 0.03, 'energy': 160.0,
+             'signed_work': 150.0}
     pvt = {'experiment': 'place_vs_toss', 'runner': 'in-process', 'wall_time': 100.0,
            'limited': False, 'repeats': 1, 'summary': summary,
-           'near_zero_contact_probe': probe,
+           'equal_impact_probe': probe,
            'settings': {'toss_scenario': 'paper_toss', 'place_scenario': 'paper_place',
                         'place_target': [0.75, -0.1, 0.25],
                         'toss_release_position': [0.68, 0.0, 0.45], 'impact_speed': 0.5,
+                        'place_impact_speed': 0.11,
                         'place_duration': 8.0},
            'plots': ['fig10_time_energy.png']}
     robustness = {'scenario': 'paper_toss', 'runner': 'graph', 'trials': 40, 'jobs': 2,
@@ -257,7 +260,7 @@ def test_report_renders_the_numbers_from_the_json_files(tmp_path):
         in headline
     assert '4.0 ms' in headline and '21.7 mm' in headline and '5.5 %' in headline
     assert '| 25.0 % | 19 % |' in headline
-    assert '| 12.3 % (7.5 %; 21.0 %) | 24 % |' in headline
+    assert '| 26.5 % (12.3 %; 21.0 %) | 24 % |' in headline
     assert '92.5 % of 40' in headline
     # Experiments without results are reported as not run, in the table and the sections.
     assert '| workspace extension by tossing (exp. 2) | — | >= 20 % |' in headline
@@ -266,8 +269,8 @@ def test_report_renders_the_numbers_from_the_json_files(tmp_path):
     assert '](results/fast_toss/fig6_tool_speeds.png)' in text
     assert 'trial 7: slip 12 mm' in text
     assert '![success.png](results/robustness/success.png)' in text
-    # The near-zero contact probe (150 J) against the toss at its speed (120 J).
-    assert 'uses 20.0 % less energy' in text
+    # The equal-impact place run (150 J signed) against the toss at its speed (120 J).
+    assert 'needs 20.0 % less signed work' in text
 
 
 def test_report_of_an_empty_results_directory(tmp_path):

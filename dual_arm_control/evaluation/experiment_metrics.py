@@ -20,6 +20,12 @@ def reduction_percent(baseline, proposed):
     return 100.0 * (baseline - proposed) / baseline
 
 
+def signed_work(t, tau, dq):
+    """Return the integral of tau . dq dt [J]: the paper's mechanical energy, recovery counted."""
+    power = np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq))
+    return float(np.trapezoid(power, np.asarray(t))) if len(power) > 1 else 0.0
+
+
 def positive_work(t, tau, dq):
     """Return the integral of max(tau . dq, 0) dt [J]: work the drives supply, none recovered."""
     power = np.maximum(np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq)), 0.0)

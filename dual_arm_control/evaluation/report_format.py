@@ -61,6 +61,6 @@ def value_range(values):
 
 def mean_std(entry, digits=2, scale=1.0):
     """Return 'mean ± std' of a statistics entry scaled by scale, or MISSING without a mean."""
-    if entry['mean'] is None:
+    if entry is None or entry['mean'] is None:
         return MISSING
     return f'{entry["mean"] * scale:.{digits}f} ± {entry["std"] * scale:.{digits}f}'
