@@ -9,7 +9,8 @@ if [[ ! -x .venv/bin/python ]]; then
   "$PYTHON" -m venv .venv
 fi
 stamp=.venv/.dual_arm_control-installed
-if [[ ! -f $stamp || requirements.txt -nt $stamp || setup.py -nt $stamp ]]; then
+if [[ ! -f $stamp || requirements.txt -nt $stamp || setup.py -nt $stamp
+      || dual_arm_control/executables.py -nt $stamp ]]; then
   .venv/bin/python -m pip install -q -U pip
   .venv/bin/python -m pip install -q -r requirements.txt
   .venv/bin/python -m pip install -q --no-deps -e .
