@@ -14,6 +14,8 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import MarkerArray
 
@@ -123,11 +125,27 @@ RECORDER_STATUS = Topic('/bag_record/matched', DiagnosticArray, QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
+# The cell model for viewers (cell_state_publisher): the URDF of both arms, each link and joint
+# prefixed '<arm>_' (joints '<arm>_A1'..'<arm>_A7' as in joint_states), under the root link
+# 'world', with the pallet and the front table; sent once, kept for late subscribers.
+ROBOT_DESCRIPTION = Topic('/robot_description', String, QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL))
+# TF frames (tf2 conventions): the URDF links ('world', '<arm>_link_0'..'<arm>_link_7',
+# '<arm>_flange', '<arm>_ft_sensor', '<arm>_grabber', '<arm>_tool' = the pad's outer face, z out
+# of the pad; 'pallet', 'front_table'), 'object' (the tracker's estimate of the box centre) and
+# the task targets 'release_target', 'landing_target', 'place_target' (in 'world'). /tf carries
+# the joints and the object, stamped with their inputs; /tf_static the rest, sent once.
+TF = Topic('/tf', TFMessage, MONITOR_QOS)
+TF_STATIC = Topic('/tf_static', TFMessage, QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
 ALL_TOPICS = (
     CLOCK, JOINT_STATES, TORQUE_COMMAND, FT_WRENCH, MOCAP_OBJECT_POSE, OBJECT_STATE, DS_COMMAND,
     CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, GROUND_TRUTH_OBJECT,
     GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_TOOL, DIAGNOSTICS,
-    RECORDER_STATUS,
+    RECORDER_STATUS, ROBOT_DESCRIPTION, TF, TF_STATIC,
 )
 
 # Services of the bridge (std_srvs/Trigger) and their names.

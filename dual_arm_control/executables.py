@@ -11,6 +11,7 @@ EXECUTABLES = {
     'ds_motion_generator': 'dual_arm_control.nodes.ds_motion_generator:main',
     'wrench_qp': 'dual_arm_control.nodes.wrench_qp:main',
     'passive_controller': 'dual_arm_control.nodes.passive_controller:main',
+    'cell_state_publisher': 'dual_arm_control.nodes.cell_state_publisher:main',
     'gravity_comp_controller': 'sim_bridge.gravity_comp_controller:main',
     'dual_arm_bringup': 'dual_arm_control.bringup:main',
     'bag_record': 'dual_arm_control.nodes.bag_record:main',

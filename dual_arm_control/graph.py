@@ -61,7 +61,13 @@ def full_graph():
         nodes.append(NodeSpec('passive_controller', 'passive_controller', f'/{arm}',
                               dict(sim_time, arm=arm), ('passive_controller.yaml',),
                               realtime_priority=CONTROLLER_PRIORITY))
-    return tuple(nodes)
+    return tuple(nodes) + (cell_state_publisher(),)
+
+
+def cell_state_publisher():
+    """Return the node publishing /robot_description and TF (viewers; no cycle waits for it)."""
+    return NodeSpec('cell_state_publisher', 'cell_state_publisher',
+                    parameters={'use_sim_time': True})
 
 
 def hold_graph():
@@ -72,7 +78,7 @@ def hold_graph():
         nodes.append(NodeSpec('gravity_comp_controller', 'controller', f'/{arm}',
                               {'arm': arm, 'mode': 'gravity'},
                               realtime_priority=CONTROLLER_PRIORITY))
-    return tuple(nodes)
+    return tuple(nodes) + (cell_state_publisher(),)
 
 
 GRAPHS = {'full': full_graph, 'hold': hold_graph}
@@ -100,6 +106,8 @@ def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None, r
         parameters['sim_bridge']['duration'] = RUN_FOREVER
     if trajectory_log is not None:
         parameters['sim_bridge']['trajectory_log'] = str(trajectory_log)
+    if scenario is not None:
+        parameters['cell_state_publisher'] = {'scenario': str(scenario)}
     if graph == 'full':
         if scenario is not None:
             parameters['ds_motion_generator'] = {'scenario': str(scenario),

@@ -18,7 +18,7 @@ import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.geometry import matrix_to_quat_xyzw
+from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rpy_to_matrix
 import mujoco
 import numpy as np
 
@@ -82,16 +82,6 @@ def _floats(text, default='0 0 0'):
     return np.array([float(v) for v in (text or default).split()])
 
 
-def _rpy_matrix(rpy):
-    roll, pitch, yaw = rpy
-    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                              np.cos(yaw), np.sin(yaw))
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return rz @ ry @ rx
-
-
 def _wxyz(rotation):
     x, y, z, w = matrix_to_quat_xyzw(rotation)
     return [w, x, y, z]
@@ -102,7 +92,7 @@ def _origin(element):
     origin = element.find('origin') if element is not None else None
     if origin is None:
         return np.zeros(3), np.eye(3)
-    return _floats(origin.get('xyz')), _rpy_matrix(_floats(origin.get('rpy')))
+    return _floats(origin.get('xyz')), rpy_to_matrix(_floats(origin.get('rpy')))
 
 
 class _UrdfArm:

@@ -4,7 +4,7 @@ from ament_pep257.main import main
 
 from conftest import SOURCE_ROOT
 
-CHECKED_PATHS = ['dual_arm_control', 'sim_bridge', 'test', 'launch', 'setup.py']
+CHECKED_PATHS = ['dual_arm_control', 'sim_bridge', 'test', 'launch', 'setup.py', 'tools']
 
 
 def test_pep257():

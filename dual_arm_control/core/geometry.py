@@ -59,6 +59,26 @@ def quat_xyzw_to_matrix(quat_xyzw):
     ])
 
 
+def rpy_to_matrix(rpy):
+    """Return the rotation of URDF roll, pitch, yaw [rad]: Rz(yaw) Ry(pitch) Rx(roll)."""
+    roll, pitch, yaw = rpy
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def matrix_to_rpy(rotation):
+    """Return URDF roll, pitch, yaw [rad] of a rotation matrix (inverse of rpy_to_matrix)."""
+    pitch = np.arcsin(-np.clip(rotation[2, 0], -1.0, 1.0))
+    if abs(np.cos(pitch)) < 1e-9:
+        return 0.0, float(pitch), float(np.arctan2(-rotation[0, 1], rotation[1, 1]))
+    return (float(np.arctan2(rotation[2, 1], rotation[2, 2])), float(pitch),
+            float(np.arctan2(rotation[1, 0], rotation[0, 0])))
+
+
 def matrix_to_quat_xyzw(rotation):
     """Return the unit quaternion (x, y, z, w) with w >= 0 of a rotation matrix."""
     r = np.asarray(rotation, dtype=float)

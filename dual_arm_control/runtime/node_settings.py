@@ -24,6 +24,8 @@ DS_PERIOD = 0.005
 """Period of the motion generator and wrench QP ticks [s] (200 Hz, the paper's rate)."""
 COMMAND_TIMEOUT = 0.05
 """Age [s, sim time] beyond which a controller's DS command or contact wrench is stale."""
+TF_PERIOD = 0.02
+"""Sim time between two /tf updates of one source [s] (50 Hz: enough for viewers, light)."""
 MODES = ('lockstep', 'realtime')
 TORQUE_INTERFACES = ('full', 'gravity_compensated')
 MAX_DURATION = 1.0e6
@@ -139,6 +141,12 @@ NODE_TABLES = {
                 'than this from the cycle is stale: hold torque / no wrench (sim time; must '
                 'exceed ds_period + fri_period)', 's', 0.0, 1.0, low_open=True),
         DIAGNOSTICS_PERIOD), PassiveControllerConfig),
+    'cell_state_publisher': NodeTable((
+        Setting('scenario', '', 'scenario YAML (path, or name under config/scenarios) whose '
+                'targets (release, landing, place) become static TF frames; empty: none',
+                read_only=True),
+        Setting('tf_period', TF_PERIOD, 'sim time between two /tf updates of one source (each '
+                'arm from its joint states, the object from /object/state)', 's', 0.001, 1.0))),
     'gravity_comp_controller': NodeTable((
         Setting('arm', '', 'which arm this test controller drives (no default: set it per '
                 'namespace)', choices=('left', 'right'), read_only=True),
