@@ -45,16 +45,27 @@ MONITOR_QOS = QoSProfile(
 LATCHED_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=HISTORY_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Depth of a node's sensor subscriptions in lockstep: the bridge runs ahead of a DS or QP tick
+# by at most the FRI cycles of one DS period (3), so 10 samples never overflow.
+SENSOR_SUBSCRIPTION_DEPTH = 10
+# Depth of command subscriptions (DS command, contact wrench, torque command): only the newest
+# counts, and in lockstep the next one is not sent before the current one was answered.
+COMMAND_SUBSCRIPTION_DEPTH = 1
 
 
 @dataclass(frozen=True)
 class Topic:
-    """A topic of the graph: name (relative names live under an arm namespace), type, QoS."""
+    """
+    A topic of the graph: name (relative names live under an arm namespace), type, QoS.
+
+    lockstep_depth: the depth a node subscribes with in lockstep (None: the QoS's).
+    """
 
     name: str
     msg_type: type
     qos: QoSProfile
     per_arm: bool = False
+    lockstep_depth: int = None
 
     @property
     def publisher_qos(self):
@@ -67,13 +78,12 @@ class Topic:
         """
         Return the QoS a node subscribes with in lockstep or in realtime.
 
-        The topic's in lockstep (every stamp matters); depth 1 in realtime, where only the
-        newest message matters (take-latest), so a node that fell behind answers the present,
-        not a backlog.
+        The topic's reliability and durability. In lockstep (every stamp matters) the depth is
+        lockstep_depth, or the QoS's; in realtime 1, where only the newest message matters
+        (take-latest), so a node that fell behind answers the present, not a backlog.
         """
-        if lockstep:
-            return self.qos
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+        depth = (self.lockstep_depth or self.qos.depth) if lockstep else 1
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                           reliability=self.qos.reliability, durability=self.qos.durability)
 
     def resolved(self, arm=None):
@@ -89,11 +99,15 @@ class Topic:
 # time; vectors are SI and in the world frame unless a frame_id says otherwise.
 CLOCK = Topic('/clock', Clock, CONTROL_QOS)
 # Joints matched by name (any order; other joints ignored, a missing one refused).
-JOINT_STATES = Topic('joint_states', JointState, SENSOR_QOS, per_arm=True)
-TORQUE_COMMAND = Topic('torque_command', JointState, CONTROL_QOS, per_arm=True)
+JOINT_STATES = Topic('joint_states', JointState, SENSOR_QOS, per_arm=True,
+                     lockstep_depth=SENSOR_SUBSCRIPTION_DEPTH)
+TORQUE_COMMAND = Topic('torque_command', JointState, CONTROL_QOS, per_arm=True,
+                       lockstep_depth=COMMAND_SUBSCRIPTION_DEPTH)
 # Raw F/T reading: the wrench the tool applies to the sensor, frame <arm>_ft_sensor.
-FT_WRENCH = Topic('ft_wrench', WrenchStamped, SENSOR_QOS, per_arm=True)
-MOCAP_OBJECT_POSE = Topic('/mocap/object_pose', PoseStamped, SENSOR_QOS)
+FT_WRENCH = Topic('ft_wrench', WrenchStamped, SENSOR_QOS, per_arm=True,
+                  lockstep_depth=SENSOR_SUBSCRIPTION_DEPTH)
+MOCAP_OBJECT_POSE = Topic('/mocap/object_pose', PoseStamped, SENSOR_QOS,
+                          lockstep_depth=SENSOR_SUBSCRIPTION_DEPTH)
 # The tracker answers every mocap sample (stamp = the sample's) and every /clock cycle (stamp =
 # the cycle's). Pose and twist of the child frame 'object' in 'world', twist in 'world' at the
 # object centre; covariances from the filter. Before a track exists pose.covariance[0] is
@@ -103,9 +117,11 @@ NO_ESTIMATE_COVARIANCE = -1.0
 # The DS command of one arm for a tick: a one-point MultiDOFJointTrajectory in 'world' for the
 # joint '<arm>_tool': transforms[0] = the DS attractor (translation) and the desired tool
 # orientation (rotation); velocities[0] = the desired tool twist in 'world' at the tool point.
-DS_COMMAND = Topic('ds_command', MultiDOFJointTrajectory, CONTROL_QOS, per_arm=True)
+DS_COMMAND = Topic('ds_command', MultiDOFJointTrajectory, CONTROL_QOS, per_arm=True,
+                   lockstep_depth=COMMAND_SUBSCRIPTION_DEPTH)
 # Force the pad applies on the object and moment about the tool point, frame 'world'.
-CONTACT_WRENCH = Topic('contact_wrench', WrenchStamped, CONTROL_QOS, per_arm=True)
+CONTACT_WRENCH = Topic('contact_wrench', WrenchStamped, CONTROL_QOS, per_arm=True,
+                       lockstep_depth=COMMAND_SUBSCRIPTION_DEPTH)
 OBJECT_DESIRED_TWIST = Topic('/object/desired_twist', TwistStamped, CONTROL_QOS)
 # One stamped status per DS tick: message = phase, values = task, time in phase, events, reason.
 PHASE = Topic('/dual_arm/phase', DiagnosticArray, LATCHED_QOS)

@@ -125,7 +125,8 @@ class SimBridge(Node):
             self.create_subscription(contract.TORQUE_COMMAND.msg_type,
                                      contract.TORQUE_COMMAND.resolved(arm),
                                      lambda msg, arm=arm: self._on_torque_command(arm, msg),
-                                     contract.TORQUE_COMMAND.qos)
+                                     contract.TORQUE_COMMAND.subscription_qos(
+                                         self.mode == 'lockstep'))
         self.create_service(Trigger, contract.SIM_RESET_SERVICE, self._on_reset)
         self.create_service(Trigger, contract.SIM_MOVE_OBJECT_SERVICE, self._on_move_object)
         if self._wait_for_tracker:

@@ -31,7 +31,7 @@ from graph_helpers import GraphProbe
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import qos_profile_sensor_data, ReliabilityPolicy
 
 SPIN_TIMEOUT = 10.0
 # Wall time the executor keeps spinning to show that a message is NOT sent.
@@ -440,6 +440,89 @@ def test_controller_parameters(controller):
     config = PassiveControllerConfig(damping_along=250.0, posture_tracking_step=0.0)
     np.testing.assert_allclose(efforts(commands[0]),
                                expected_torque(q, dq, command, wrench, config), atol=1e-9)
+
+
+@pytest.fixture
+def realtime_controller(harness_factory):
+    """Return the left controller in realtime (it answers each joint state) with diagnostics."""
+    harness = controller_harness(harness_factory, False)
+    harness.record(contract.DIAGNOSTICS)
+    harness.connect()
+    return harness
+
+
+def reordered_joint_state(t_ns, q, dq, order, extra=()):
+    """Return the left arm's joint state with its joints in `order`, then `extra` joints."""
+    msg = joint_state(t_ns, q, dq)
+    names = contract.joint_names('left')
+    msg.name = [names[i] for i in order] + list(extra)
+    msg.position = [float(q[i]) for i in order] + [9.0] * len(extra)
+    msg.velocity = [float(dq[i]) for i in order] + [-9.0] * len(extra)
+    msg.effort = [0.0] * (len(order) + len(extra))
+    return msg
+
+
+def answer_to(controller, msg):
+    """Send a joint state to the realtime controller; return its torque command."""
+    commands = controller.received['/left/torque_command']
+    count = len(commands)
+    controller.send('/left/joint_states', msg)
+    assert controller.spin_until(lambda: len(commands) == count + 1)
+    return commands[-1]
+
+
+def test_joint_states_in_any_order_give_the_same_command(realtime_controller):
+    q, dq, _, _ = controller_inputs(4)
+    for k, order in enumerate(([6, 5, 4, 3, 2, 1, 0], [3, 0, 6, 1, 5, 2, 4])):
+        command = answer_to(realtime_controller, reordered_joint_state(2_000_000 * k, q, dq,
+                                                                       order))
+        assert command.name == contract.joint_names('left')
+        np.testing.assert_allclose(efforts(command), expected_hold(q, dq), rtol=0.0, atol=1e-9)
+    assert realtime_controller.node.step.refusals.total == 0
+
+
+def test_extra_joints_in_a_joint_state_are_ignored(realtime_controller):
+    q, dq, _, _ = controller_inputs(5)
+    msg = reordered_joint_state(0, q, dq, [2, 0, 1, 3, 4, 5, 6],
+                                extra=['left_gripper_finger', 'right_A1'])
+    command = answer_to(realtime_controller, msg)
+    np.testing.assert_allclose(efforts(command), expected_hold(q, dq), rtol=0.0, atol=1e-9)
+    assert realtime_controller.node.step.refusals.total == 0
+
+
+def test_a_joint_state_missing_a_joint_is_refused_and_counted(realtime_controller):
+    """No command answers it; the refusal is counted and reported on /diagnostics."""
+    controller, node = realtime_controller, realtime_controller.node
+    commands, reports = (controller.received['/left/torque_command'],
+                         controller.received['/diagnostics'])
+    q, dq, _, _ = controller_inputs(6)
+    answer_to(controller, joint_state(0, q, dq))
+    missing_a4 = reordered_joint_state(2_000_000, q, dq, [0, 1, 2, 4, 5, 6], extra=['right_A4'])
+    controller.send('/left/joint_states', missing_a4)
+    assert controller.spin_until(lambda: node.step.refusals.counts.get('joint_state') == 1)
+    controller.spin_quietly()
+    assert len(commands) == 1
+    period_ns = seconds_to_ns(node.get_parameter('diagnostics_period').value)
+    answer_to(controller, joint_state(period_ns, q, dq))
+    assert controller.spin_until(lambda: len(reports) == 2)
+    values = {pair.key: pair.value for pair in reports[-1].status[0].values}
+    assert values['refused_joint_state'] == '1'
+    assert reports[-1].status[0].level == DiagnosticStatus.WARN
+
+
+@pytest.mark.parametrize('lockstep', [True, False], ids=['lockstep', 'realtime'])
+def test_sensor_subscriptions_are_best_effort_and_commands_keep_one(harness_factory, lockstep):
+    """A best-effort driver connects to every sensor input; commands keep only the newest."""
+    node = harness_factory(controller_node(lockstep)).node
+    qos = {sub.topic_name: sub.qos_profile for sub in node.subscriptions}
+    sensor = qos['/left/joint_states']
+    assert sensor.reliability == ReliabilityPolicy.BEST_EFFORT
+    assert sensor.depth == (contract.SENSOR_SUBSCRIPTION_DEPTH if lockstep else 1) <= 10
+    for name in ('/left/ds_command', '/left/contact_wrench'):
+        assert qos[name].reliability == ReliabilityPolicy.RELIABLE and qos[name].depth == 1
+    for topic in (contract.FT_WRENCH, contract.MOCAP_OBJECT_POSE):
+        assert topic.subscription_qos(lockstep).reliability == ReliabilityPolicy.BEST_EFFORT
+    assert contract.TORQUE_COMMAND.subscription_qos(lockstep).depth == 1
 
 
 # -- wrench_qp -----------------------------------------------------------------------------------

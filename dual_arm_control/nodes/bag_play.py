@@ -3,17 +3,19 @@ bag_play: publish the topics of an MCAP bag again, with their recorded timing or
 
 Timed (default): each message goes out at its recorded log time after the start, scaled by
 --rate; the bag's /clock (recorded from the sim bridge) is republished with the rest, so nodes
-with use_sim_time follow the recorded sim time. Lockstep (--lockstep): the messages go out in
-recorded order as fast as the node under test allows. Each --wait-for topic is an output of
-that node recorded in the bag (header-stamped, not published); its recorded stamps are the
-input stamps the node answers. Messages are grouped by stamp (header stamp, /clock's time):
-where a group stamped t ends and the node answered t in the recording, bag_play first sends
-the messages stamped t among the next few recorded ones (the recorder may log one of a cycle's
-inputs late), then waits until the node has published a message stamped t on every --wait-for
-topic (or --wait-timeout passed: counted and reported). Messages are published as recorded
-(serialized CDR), never deserialized, each topic with the QoS its publishers offered when
-recorded (reliable, volatile, keep-last 100 if unknown). Input: an .mcap file (with its split
-files <stem>_N.mcap) or a rosbag2 folder.
+with use_sim_time follow the recorded sim time. With --clock [HZ] bag_play publishes /clock
+itself instead, HZ times per wall second, from the bag's log time (as rosbag2's --clock does):
+for bags without a /clock, or whose log time is the time to follow. Lockstep (--lockstep): the
+messages go out in recorded order as fast as the node under test allows. Each --wait-for topic
+is an output of that node recorded in the bag (header-stamped, not published); its recorded
+stamps are the input stamps the node answers. Messages are grouped by stamp (header stamp,
+/clock's time): where a group stamped t ends and the node answered t in the recording, bag_play
+first sends the messages stamped t among the next few recorded ones (the recorder may log one
+of a cycle's inputs late), then waits until the node has published a message stamped t on every
+--wait-for topic (or --wait-timeout passed: counted and reported). Messages are published as
+recorded (serialized CDR), never deserialized, each topic with the QoS its publishers offered
+when recorded (reliable, volatile, keep-last 100 if unknown). Input: an .mcap file (with its
+split files <stem>_N.mcap) or a rosbag2 folder.
 
 This module is the command line; bags/playback.py checks the options against the bag and
 nodes/bag_player.py is the node that publishes and waits.
@@ -32,10 +34,15 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
+# /clock messages per wall second of `--clock` without a value (rosbag2's default).
+DEFAULT_CLOCK_RATE = 40.0
+
 EXAMPLES = """\
 examples:
   # replay a recorded run at its recorded pace (/clock included)
   bag_play runs/latest/bag.mcap
+  # /clock from the bag's log time at 100 Hz, instead of the recorded /clock
+  bag_play bag.mcap --clock 100
   # twice as fast, only the arm states, from 0.5 s into the bag for 1 s
   bag_play bag.mcap --rate 2 --regex 'joint_states$' --start-offset 0.5 --duration 1
   # everything but ground truth, the left arm's state under another name, 3 passes
@@ -75,6 +82,11 @@ def parse_arguments(argv):
                         help='publish bag topic /OLD as /NEW (repeatable)')
     parser.add_argument('-r', '--rate', type=float, default=1.0,
                         help='timed mode: playback speed factor (2 = twice as fast)')
+    parser.add_argument('--clock', type=float, nargs='?', const=DEFAULT_CLOCK_RATE,
+                        metavar='HZ',
+                        help="timed mode: publish /clock from the bag's log time HZ times per "
+                             f'wall second (default {DEFAULT_CLOCK_RATE:g} without a value) for '
+                             "nodes with use_sim_time; the bag's own /clock is not played")
     parser.add_argument('--start-offset', type=float, default=0.0, metavar='SECONDS',
                         help='start this far after the first message of the bag [s]')
     parser.add_argument('--duration', type=float, metavar='SECONDS',
@@ -113,6 +125,11 @@ def parse_arguments(argv):
         raise BagError(f'--loops must be >= 1, got {options.loops}')
     if options.wait_for and not options.lockstep:
         raise BagError('--wait-for needs --lockstep')
+    if options.clock is not None and not options.clock > 0.0:
+        raise BagError(f'--clock must be > 0 Hz, got {options.clock}')
+    if options.clock is not None and options.lockstep:
+        raise BagError("--clock needs timed playback; in lockstep play the bag's own /clock "
+                       '(--topics /clock ...)')
     return options
 
 

@@ -2,21 +2,24 @@
 BagPlayer: the ROS node of bag_play, publishing a bag's messages timed or in lockstep.
 
 Timed: each message goes out at its recorded log time after the start of the pass, scaled by
---rate. Lockstep: messages go out in recorded order, grouped by stamp; after a group stamped t
-that the node under test answered in the recording, the player waits for the node's outputs
-stamped t on the --wait-for topics. Messages are published as recorded (serialized CDR), each
-topic with the QoS its publishers offered; PlaybackStats counts what was played and waited.
+--rate; with --clock the player publishes /clock from the log time on its way. Lockstep:
+messages go out in recorded order, grouped by stamp; after a group stamped t that the node
+under test answered in the recording, the player waits for the node's outputs stamped t on the
+--wait-for topics. Messages are published as recorded (serialized CDR), each topic with the QoS
+its publishers offered; PlaybackStats counts what was played and waited.
 """
 
 from collections import deque
 import sys
 import time
 
+from dual_arm_control import contract
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.playback import wall_offset
 from dual_arm_control.bags.schema import first_field_type, HEADER_TYPE
 from dual_arm_control.bags.writer import header_stamp_ns
 from dual_arm_control.nodes.bag_record import message_class
+from dual_arm_control.nodes.messages import time_msg
 import rclpy
 from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
@@ -42,6 +45,31 @@ def stamped_type(type_name):
         return first_field_type(type_name) in (HEADER_TYPE, STAMP_TYPE)
     except BagError:
         return False
+
+
+class BagClock:
+    """
+    The /clock of a timed pass (--clock): bag log time at a wall-clock tick rate.
+
+    Ticks fall every 1 / hz wall seconds from the start of the pass; a tick carries the bag time
+    the pass has reached then (window start + wall time x rate), at most last_ns. Ticks missed
+    while the player was busy are dropped, not sent in a burst.
+    """
+
+    def __init__(self, start, first_ns, last_ns, rate, hz):
+        self._start = start
+        self._first_ns = first_ns
+        self._last_ns = last_ns
+        self._rate = rate
+        self._period = 1.0 / hz
+        self.next_tick = start
+
+    def take(self, now):
+        """Return the bag time [ns] of the last tick due at wall time now; schedule the next."""
+        tick = self.next_tick + max(int((now - self.next_tick) / self._period), 0) * self._period
+        self.next_tick = tick + self._period
+        return min(self._first_ns + int(round((tick - self._start) * self._rate * 1e9)),
+                   self._last_ns)
 
 
 class PlaybackStats:
@@ -86,9 +114,15 @@ class BagPlayer(Node):
         self._playback = playback
         self._options = options
         self._outputs = {}
+        self._clock_pub = None
+        if options.clock is not None:
+            self._clock_pub = self.create_publisher(contract.CLOCK.msg_type, contract.CLOCK.name,
+                                                    contract.CLOCK.publisher_qos)
         self._stamped = {topic: stamped_type(reader.topics[topic].type_name)
                          for topic in playback.topics + playback.wait_for}
         for topic in playback.topics:
+            if self._clock_pub is not None and playback.outputs[topic] == contract.CLOCK.name:
+                continue
             info = reader.topics[topic]
             try:
                 msg_type = message_class(info.type_name)
@@ -145,6 +179,8 @@ class BagPlayer(Node):
         def unmatched():
             topics = [self._playback.outputs[t] for t, p in self._outputs.items()
                       if p.get_subscription_count() == 0]
+            if self._clock_pub is not None and self._clock_pub.get_subscription_count() == 0:
+                topics.append(contract.CLOCK.name)
             return topics + [self._playback.wait_names[t] for t, s in self._waited.items()
                              if s.get_publisher_count() == 0]
 
@@ -190,12 +226,25 @@ class BagPlayer(Node):
         """Publish each message at its recorded time after the start of the pass (/ rate)."""
         first, stop = self._playback.window
         start = time.monotonic()
+        clock = None if self._clock_pub is None else BagClock(
+            start, first, min(stop - 1, self._reader.end_ns), self._options.rate,
+            self._options.clock)
         for message in self._reader.messages(list(self._outputs), first, stop):
             due = start + wall_offset(message.log_time, first, self._options.rate)
+            while clock is not None and clock.next_tick < due and self.running():
+                self.spin_until(clock.next_tick)
+                self._publish_clock(clock.take(time.monotonic()))
             self.spin_until(due)
             if not self.running():
                 return
             self._publish(message)
+
+    def _publish_clock(self, stamp_ns):
+        """Publish /clock at a bag time [ns] and count it."""
+        if not self.running():
+            return
+        self._clock_pub.publish(contract.CLOCK.msg_type(clock=time_msg(stamp_ns)))
+        self.stats.counts[contract.CLOCK.name] = self.stats.counts.get(contract.CLOCK.name, 0) + 1
 
     def _play_lockstep(self):
         """
