@@ -111,7 +111,9 @@ def test_toss_attractor_and_target_fields_eq_9():
                                x + geometry.release_velocity / COORDINATION.absolute_gain)
     targets = toss_target_fields(x, geometry, 1.0)
     np.testing.assert_allclose(targets[0, 0], geometry.release_velocity, atol=1e-15)
-    np.testing.assert_allclose(targets[0, 1], -4.5 * (x - geometry.transitory), atol=1e-15)
+    lateral = -TossConfig().lateral_gain * (x - geometry.transitory)
+    np.testing.assert_allclose(targets[0, 1], lateral, atol=1e-15)
+    np.testing.assert_allclose(targets[0, 2], lateral, atol=1e-15)
 
 
 def test_toss_geometry_matches_the_config():
