@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray
 from dual_arm_control.core.arms import ARMS, joint_names, JOINTS_PER_ARM  # noqa: F401
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rosgraph_msgs.msg import Clock
@@ -127,6 +127,12 @@ OBJECT_DESIRED_TWIST = Topic('/object/desired_twist', TwistStamped, CONTROL_QOS)
 PHASE = Topic('/dual_arm/phase', DiagnosticArray, LATCHED_QOS)
 PHASE_STATUS_NAME = 'dual_arm/phase'
 MARKERS = Topic('/dual_arm/markers', MarkerArray, MONITOR_QOS)
+# Where a toss should land (the box centre at rest on the landing surface), frame 'world': the
+# motion generator plans the release state for it until the box is released, or refuses it
+# with a reason (log, /diagnostics). Kept for a motion generator that starts later.
+LANDING_TARGET = Topic('/dual_arm/landing_target', PointStamped, QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL))
 GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, MONITOR_QOS)
 # Total force the pad exerts on the box and its moment about the tool point, frame 'world'
 # (zero when the pad does not touch the box).
@@ -159,7 +165,7 @@ TF_STATIC = Topic('/tf_static', TFMessage, QoSProfile(
 
 ALL_TOPICS = (
     CLOCK, JOINT_STATES, TORQUE_COMMAND, FT_WRENCH, MOCAP_OBJECT_POSE, OBJECT_STATE, DS_COMMAND,
-    CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, GROUND_TRUTH_OBJECT,
+    CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, LANDING_TARGET, GROUND_TRUTH_OBJECT,
     GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_TOOL, DIAGNOSTICS,
     RECORDER_STATUS, ROBOT_DESCRIPTION, TF, TF_STATIC,
 )

@@ -29,6 +29,7 @@ from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.runtime.tracker_step import TrackerStep
 from dual_arm_control.runtime.wrench_step import WrenchStep
 from dual_arm_control.trajectory_log import TrajectoryRecorder
+import numpy as np
 from sim_bridge.twin import DualArmTwin
 
 
@@ -48,14 +49,23 @@ class RunnerConfig:
     command_outages: tuple = ()
     """Fault injection: (arm, start, end) sim-time windows [s] in which that arm's controller
     gets no DS command (it holds once its last command is stale), e.g. a late start."""
+    landing_target_changes: tuple = ()
+    """Operator input: (time [s], (x, y, z) [m]) landing targets handed to the motion generator
+    at those sim times, as /dual_arm/landing_target does in the graph."""
 
 
 @dataclass
 class EpisodeLog:
-    """What an in-process run produced: ground truth and the phase at every DS tick."""
+    """
+    What an in-process run produced.
+
+    trajectory: ground truth; phases: the phase at every DS tick; landing_target_refusals: per
+    landing target change, the reason it was refused ('' if applied).
+    """
 
     trajectory: dict
     phases: list = field(default_factory=list)
+    landing_target_refusals: list = field(default_factory=list)
 
 
 class StageTimer:
@@ -117,8 +127,12 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
     recorder.append(twin, fri.applied)
     log = EpisodeLog(trajectory={})
     duration = scenario.duration if duration is None else duration
+    targets = sorted(config.landing_target_changes, key=lambda change: change[0])
     while twin.time < duration - 1e-9:
         state = fri.begin()
+        while targets and targets[0][0] <= state.stamp_ns * 1e-9:
+            log.landing_target_refusals.append(roles.motion.set_landing_target(
+                np.asarray(targets.pop(0)[1], dtype=float)))
         with timer.stage('tracker'):
             for sample in state.mocap:
                 roles.tracker.sample(sample.stamp_ns, sample.position, sample.quat_xyzw)

@@ -3,9 +3,9 @@
 import json
 import math
 
-from dual_arm_control.core.ballistics import (landing_without_drag,
-                                              release_velocity_minimum_speed)
+from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.toss_planning import ReleasePlanningConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import experiment_metrics, experiment_tosses, experiments
 from dual_arm_control.evaluation import paper_results, report, workspace
@@ -175,26 +175,31 @@ def test_longest_toss_is_the_best_elevation_of_the_ballistic_flight():
     assert experiment_metrics.longest_toss(speed, 0.0) == pytest.approx(speed ** 2 / 9.81)
 
 
-def test_landing_targets_lie_on_the_table_and_within_the_release_speed():
+def test_landing_targets_lie_on_the_table_and_the_planner_serves_them():
     cell = load_cell()
-    release = np.array([0.68, 0.0, 0.45])
     size = (0.2, 0.2, 0.2)
-    targets = experiment_metrics.landing_targets(
-        cell, size, release, experiment_tosses.TARGET_X, experiment_tosses.TARGET_Y,
-        experiment_tosses.MAX_RELEASE_SPEED)
-    assert len(targets) == len(experiment_tosses.TARGET_X) * len(experiment_tosses.TARGET_Y)
+    planning = ReleasePlanningConfig()
+    targets, refused = experiment_metrics.landing_targets(
+        cell, size, experiment_tosses.TARGET_X, experiment_tosses.TARGET_Y, planning)
+    assert len(targets) + len(refused) == (len(experiment_tosses.TARGET_X)
+                                           * len(experiment_tosses.TARGET_Y))
+    # The grid spans 0.4 m x 0.6 m and the planner serves at least half of it.
+    assert np.ptp(experiment_tosses.TARGET_X) == pytest.approx(0.4)
+    assert np.ptp(experiment_tosses.TARGET_Y) == pytest.approx(0.6)
+    assert len(targets) >= len(refused)
     table = cell.front_table
     for target in targets:
         for dx in (-0.1, 0.1):
             for dy in (-0.1, 0.1):
                 assert table.covers(target[0] + dx, target[1] + dy)
         assert target[2] == pytest.approx(table.top_height + 0.1)
-        speed = release_velocity_minimum_speed(release, target).speed
-        assert speed <= experiment_tosses.MAX_RELEASE_SPEED
-    # Off the table edge (x 0.62 + half box) or too far for 1.05 m/s: dropped.
-    kept = experiment_metrics.landing_targets(cell, size, release, (0.70, 0.80, 1.20), (0.0,),
-                                              experiment_tosses.MAX_RELEASE_SPEED)
+    for _, reason in refused:
+        assert 'max_release_speed' in reason or 'max_heading_deg' in reason
+    # Off the table edge (x 0.62 + half box): dropped; too far: refused with the reason.
+    kept, too_far = experiment_metrics.landing_targets(cell, size, (0.70, 0.80, 1.60), (0.0,),
+                                                       planning)
     assert kept[:, 0].tolist() == [0.80]
+    assert [target[0] for target, _ in too_far] == [1.60]
 
 
 def _synthetic_results(root):
@@ -291,7 +296,11 @@ def test_one_toss_to_target_run_writes_results_and_plot(tmp_path):
     results = json.loads((tmp_path / paper_results.RESULTS_FILE).read_text())
     assert results['limited'] and len(results['targets']) == 1
     row = results['targets'][0]
-    assert row['target'] == pytest.approx([0.74, -0.10, 0.25])
-    # The measured landing error of the paper cube is a few centimetres (28 mm when written).
-    assert 0.0 < row['landing_error'] < 0.06
+    assert row['target'] == pytest.approx([0.75, -0.30, 0.25])
+    planning = ReleasePlanningConfig()
+    for value, (low, high) in zip(row['release_position_planned'],
+                                  (planning.x_range, planning.y_range, planning.z_range)):
+        assert low - 1e-9 <= value <= high + 1e-9
+    # The bound on the median landing error over the grid, for its first target.
+    assert 0.0 < row['landing_error'] < 0.02
     assert (tmp_path / 'landing_errors.png').stat().st_size > 10000

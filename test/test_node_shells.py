@@ -12,6 +12,7 @@ import math
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.catalogue import object_spec
+from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.geometry import (matrix_to_quat_xyzw, quat_xyzw_to_matrix,
                                             rotation_exp)
 from dual_arm_control.core.passive_control import (hold_torque, PassiveController,
@@ -724,3 +725,33 @@ def test_motion_generator_starts_over_when_the_clock_goes_back(motion_generator)
     assert max(np.linalg.norm(command[3:]) for command in moving) > 0.0
     second_pass = run_cycles(motion_generator, 41)
     assert second_pass == first_pass
+
+
+def test_a_landing_target_on_the_topic_replans_the_release_and_a_bad_one_is_counted(
+        motion_generator):
+    """A world-frame point re-plans the toss; another frame or NaN is refused and counted."""
+    publisher = motion_generator.publisher(contract.LANDING_TARGET)
+    motion_generator.connect()
+    step = motion_generator.node.step
+    nominal = step.pending_config.toss.release_position
+    target = contract.LANDING_TARGET.msg_type()
+    target.header.frame_id = contract.WORLD_FRAME
+    target.point.x, target.point.y, target.point.z = 0.95, 0.15, 0.25
+    publisher.publish(target)
+    assert motion_generator.spin_until(
+        lambda: step.pending_config.toss.release_position != nominal)
+    planned = step.pending_config.toss
+    landing = landing_without_drag(np.asarray(planned.release_position),
+                                   planned.toss_speed * np.asarray(planned.release_direction),
+                                   0.25)
+    np.testing.assert_allclose(landing.position[:2], [0.95, 0.15], atol=1e-6)
+    target.header.frame_id = 'left_tool'
+    publisher.publish(target)
+    assert motion_generator.spin_until(
+        lambda: step.refusals.counts.get('landing_target', 0) == 1)
+    target.header.frame_id = contract.WORLD_FRAME
+    target.point.x = float('nan')
+    publisher.publish(target)
+    assert motion_generator.spin_until(
+        lambda: step.refusals.counts.get('landing_target', 0) == 2)
+    assert step.pending_config.toss == planned

@@ -34,6 +34,7 @@ from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  boosted_velocity, reach_speed,
                                                  saturated_velocity, SpeedErrorIntegrator,
                                                  SpeedFilter, SpeedProfileConfig)
+from dual_arm_control.core.toss_planning import ReleasePlanningConfig
 from dual_arm_control.core.validation import check_range, check_vector, finite_array
 import numpy as np
 
@@ -54,7 +55,7 @@ class MotionGeneratorConfig:
         toss_speed_time_constant: s, > 0; the object's desired speed rises from the impact speed
             to the toss speed with this time constant after contact.
         coordination, impact, toss, lift, place, speed, orientation, phases, contact, ft,
-            reachability: the component configs (see their modules).
+            reachability, release_planning: the component configs (see their modules).
 
     """
 
@@ -63,7 +64,7 @@ class MotionGeneratorConfig:
     standby_positions: tuple = ((0.35, 0.31, 0.80), (0.35, -0.31, 0.80))
     standby_rotations: tuple = (tuple(map(tuple, np.eye(3))), tuple(map(tuple, np.eye(3))))
     standby_gain: float = 3.0
-    max_linear_speed: float = 1.1
+    max_linear_speed: float = 1.4
     release_opening_speed: float = 0.3
     toss_speed_time_constant: float = 0.05
     coordination: CoordinationConfig = field(default_factory=CoordinationConfig)
@@ -77,6 +78,7 @@ class MotionGeneratorConfig:
     contact: ContactConfig = field(default_factory=ContactConfig)
     ft: FtCompensationConfig = field(default_factory=FtCompensationConfig)
     reachability: ReachabilityConfig = field(default_factory=ReachabilityConfig)
+    release_planning: ReleasePlanningConfig = field(default_factory=ReleasePlanningConfig)
 
     def __post_init__(self):
         object.__setattr__(self, 'task', task_from_name(self.task))

@@ -7,8 +7,10 @@ synthetic data; dual_arm_experiment (experiments.py) runs the episodes around th
 
 import math
 
-from dual_arm_control.core.ballistics import (centre_landing_height,
-                                              release_velocity_minimum_speed, STANDARD_GRAVITY)
+from dual_arm_control.core.ballistics import (centre_landing_height, STANDARD_GRAVITY,
+                                              UnreachableTargetError)
+from dual_arm_control.core.manipulation import TossConfig
+from dual_arm_control.core.toss_planning import plan_release
 from dual_arm_control.evaluation.metrics import mechanical_energy
 import numpy as np
 
@@ -59,28 +61,33 @@ def statistics(values):
             'count': len(present)}
 
 
-def landing_targets(cell, object_size, release_position, xs, ys, max_release_speed):
+def landing_targets(cell, object_size, xs, ys, planning):
     """
-    Return the landing targets (N, 3) [m]: the grid xs x ys on the front table, kept if usable.
+    Return (targets (N, 3) [m], refused [(target, reason)]): the grid xs x ys on the front table.
 
-    A target is kept when the whole object footprint lies on the table top and the least
-    release speed from release_position is at most max_release_speed [m/s]. z is the object
-    centre resting on the table.
+    A target is kept when the whole object footprint lies on the table top and the release
+    planner (core.toss_planning with ReleasePlanningConfig planning) finds a release state for
+    it; the others are returned with the planner's reason. z is the object centre resting on
+    the table.
     """
     table = cell.front_table
     half = 0.5 * np.asarray(object_size, dtype=float)
     height = centre_landing_height(table.top_height, object_size[2])
-    targets = []
+    nominal = np.asarray(TossConfig().release_position)
+    targets, refused = [], []
     for x in xs:
         for y in ys:
             corners = [(x + sx * half[0], y + sy * half[1]) for sx in (-1, 1) for sy in (-1, 1)]
             if not all(table.covers(*corner) for corner in corners):
                 continue
             target = np.array([x, y, height])
-            solution = release_velocity_minimum_speed(np.asarray(release_position), target)
-            if solution.speed <= max_release_speed:
-                targets.append(target)
-    return np.array(targets).reshape(-1, 3)
+            try:
+                plan_release(target, nominal, planning)
+            except UnreachableTargetError as error:
+                refused.append((target, str(error)))
+                continue
+            targets.append(target)
+    return np.array(targets).reshape(-1, 3), refused
 
 
 def longest_toss(speed, drop, gravity=STANDARD_GRAVITY):

@@ -16,8 +16,7 @@ import tempfile
 import time
 
 from dual_arm_control.contract import ARMS
-from dual_arm_control.core.ballistics import (centre_landing_height,
-                                              release_velocity_minimum_speed)
+from dual_arm_control.core.ballistics import centre_landing_height
 from dual_arm_control.core.motion_generator import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import experiment_plots as plots
@@ -29,6 +28,7 @@ from dual_arm_control.evaluation.experiment_metrics import (landing_targets, lon
 from dual_arm_control.evaluation.experiment_runs import (ExperimentError, results_header,
                                                          run_inprocess_episode, write_results)
 from dual_arm_control.graph import EPISODE_START_TIME
+from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.scenario import load_scenario, ReleaseConfig, scenario_path
 from dual_arm_control.trajectory_log import load_trajectory
 import numpy as np
@@ -43,10 +43,9 @@ WORKSPACE_GRID = workspace.Grid(x0=0.0, y0=-1.0, cell=0.025, nx=56, ny=80)
 WORKSPACE_Z_BAND = (0.25, 0.75)
 WORKSPACE_SLAB = 0.10
 PAD_MAX_TILT_DEG = 30.0
-# Experiment 5: the landing-target grid over the front table.
-TARGET_X = (0.74, 0.79, 0.84, 0.89)
-TARGET_Y = (-0.10, 0.0, 0.10)
-MAX_RELEASE_SPEED = 1.05
+# Experiment 5: the landing-target grid over the front table, 0.4 m x 0.6 m.
+TARGET_X = (0.75, 0.85, 0.95, 1.05, 1.15)
+TARGET_Y = (-0.30, -0.15, 0.0, 0.15, 0.30)
 
 
 def _events(result):
@@ -210,47 +209,56 @@ def run_toss_workspace(out_dir, limit=None):
 
 
 def run_toss_to_target(out_dir, limit=None):
-    """Experiment 5: toss_to_target over a grid of landing targets on the front table."""
+    """
+    Experiment 5: toss_to_target over a grid of landing targets on the front table.
+
+    Each target's release state (point, direction, speed) comes from the release planner
+    (core.toss_planning); a target it refuses is listed with its reason, not attempted.
+    """
     started = time.monotonic()
     cell = load_cell()
     base = load_scenario('paper_toss', cell=cell)
-    release_position = np.asarray(MotionGeneratorConfig().toss.release_position)
-    targets = landing_targets(cell, base.object.size, release_position, TARGET_X, TARGET_Y,
-                              MAX_RELEASE_SPEED)[:limit]
+    planning = MotionGeneratorConfig().release_planning
+    targets, refused = landing_targets(cell, base.object.size, TARGET_X, TARGET_Y, planning)
     rows = []
-    for target in targets:
+    for target in targets[:limit]:
         scenario = replace(base, task='toss_to_target', release=None, landing_target=target)
         result, _ = run_inprocess_episode(scenario, cell)
-        solution = release_velocity_minimum_speed(release_position, target)
+        toss = motion_config_for_scenario(scenario, cell).toss
+        direction = np.asarray(toss.release_direction)
         error = result['landing_error']
         rows.append({
-            'target': target.tolist(), 'release_speed_planned': solution.speed,
-            'release_elevation_deg': math.degrees(solution.elevation),
+            'target': target.tolist(), 'release_position_planned': list(toss.release_position),
+            'release_speed_planned': toss.toss_speed,
+            'release_elevation_deg': math.degrees(math.asin(direction[2])),
             'landing_position': result['landing_position'], 'landing_error': error,
+            'landing_offset': None if result['landing_position'] is None else
+            (np.asarray(result['landing_position'][:2]) - target[:2]).tolist(),
             'hit': error is not None and error <= LANDING_LIMIT, 'success': result['success'],
-            'release_position_error': result['release_position_error'],
-            'release_velocity_error': result['release_velocity_error'],
-            'landing_prediction_error': result.get('landing_prediction_error'),
-            'max_slip': result['max_slip'], 'contact_time_gap': result['contact_time_gap']})
+            **{key: result.get(key) for key in (
+                'release_position_error', 'release_speed_error', 'release_direction_error',
+                'release_velocity_error', 'landing_prediction_error', 'max_slip',
+                'contact_time_gap')}})
     plots.landing_errors(rows, cell, Path(out_dir) / 'landing_errors.png')
     errors = [row['landing_error'] for row in rows]
-    shortfalls = [float(np.hypot(*(np.asarray(row['target'][:2]) - release_position[:2]))
-                        - np.hypot(*(np.asarray(row['landing_position'][:2])
-                                     - release_position[:2])))
-                  for row in rows if row['landing_position'] is not None]
+    offsets = np.array([row['landing_offset'] for row in rows
+                        if row['landing_offset'] is not None]).reshape(-1, 2)
+    present = [e for e in errors if e is not None]
     results = results_header('toss_to_target', 'in-process (dual_arm_control.inprocess)',
                              started, limit)
     results.update({
-        'release_position': release_position.tolist(), 'targets': rows,
-        'landing_error': {**statistics(errors), 'max': max(
-            (e for e in errors if e is not None), default=None), 'missing': sum(
-            1 for e in errors if e is None)},
-        'shortfall': statistics(shortfalls),
-        'release_position_error': statistics([row['release_position_error'] for row in rows]),
-        'landing_prediction_error': statistics([row['landing_prediction_error']
-                                                for row in rows]),
+        'targets': rows, 'grid': {'x': list(TARGET_X), 'y': list(TARGET_Y)},
+        'refused': [{'target': target.tolist(), 'reason': reason} for target, reason in refused],
+        'landing_error': {**statistics(errors), 'max': max(present, default=None),
+                          'median': float(np.median(present)) if present else None,
+                          'p95': float(np.percentile(present, 95)) if present else None,
+                          'missing': sum(1 for e in errors if e is None)},
+        'landing_bias': offsets.mean(axis=0).tolist() if len(offsets) else None,
+        **{key: statistics([row[key] for row in rows]) for key in (
+            'release_position_error', 'release_speed_error', 'release_direction_error',
+            'landing_prediction_error', 'max_slip')},
         'hit_count': sum(1 for row in rows if row['hit']),
         'success_count': sum(1 for row in rows if row['success']), 'landing_limit': LANDING_LIMIT,
-        'max_release_speed': MAX_RELEASE_SPEED, 'plots': ['landing_errors.png']})
+        'max_release_speed': planning.max_release_speed, 'plots': ['landing_errors.png']})
     write_results(out_dir, results)
     return results

@@ -57,10 +57,11 @@ def headline_rows(results):
         ('success rate, robustness trials (exp. 4)',
          (f'{number(robustness["success_rate"], 1, 100.0, "%")} of {robustness["trials"]}'
           if robustness else MISSING), 'not reported', ''),
-        ('landing error, toss to target: mean / max (exp. 5)',
-         (f'{number(targets["landing_error"]["mean"], 1, 1000.0)} / '
-          f'{number(targets["landing_error"]["max"], 1, 1000.0, "mm")}'
-          if targets else MISSING), 'not reported', ''),
+        ('landing error, toss to target: median / p95 over the grid (exp. 5)',
+         (f'{number(targets["landing_error"].get("median"), 1, 1000.0)} / '
+          f'{number(targets["landing_error"].get("p95"), 1, 1000.0, "mm")} '
+          f'({len(targets["targets"])} targets, {len(targets.get("refused", []))} refused)'
+          if targets else MISSING), 'within 0.2 x 0.4 m (no number)', ''),
     ]
     return rows
 
@@ -341,35 +342,40 @@ def toss_to_target_section(results, link_root):
     if ttt is None:
         return out + [not_run('toss_to_target')]
     rows = [(f'({row["target"][0]:.2f}, {row["target"][1]:+.2f})',
+             str([round(x, 2) for x in row.get('release_position_planned', [])]),
              number(row['release_speed_planned'], 2), number(row['release_elevation_deg'], 1),
-             MISSING if row['landing_position'] is None else
-             f'({row["landing_position"][0]:.3f}, {row["landing_position"][1]:+.3f})',
              number(row['landing_error'], 1, 1000.0),
-             number(row['release_position_error'], 1, 1000.0),
-             number(row['release_velocity_error'], 1, 100.0), 'yes' if row['hit'] else 'no')
+             number(row.get('release_speed_error'), 1, 100.0),
+             number(row.get('release_direction_error'), 1),
+             number(row['max_slip'], 1, 1000.0), 'yes' if row['hit'] else 'no')
             for row in ttt['targets']]
-    errors = ttt['landing_error']
+    errors, bias = ttt['landing_error'], ttt.get('landing_bias') or [None, None]
+    refused = ttt.get('refused', [])
     out += [
-        f'Runner: {ttt["runner"]}. Task `toss_to_target` (paper_toss otherwise): the motion '
-        f'generator solves the least-speed release velocity from the release position '
-        f'{ttt["release_position"]} m to each landing target; targets on a grid over the front '
-        f'table with the box fully on the table and a planned release speed of at most '
-        f'{ttt["max_release_speed"]:g} m/s. Landing error = horizontal distance between the '
-        f'measured landing of the box centre and the target; a hit is within '
+        f'Runner: {ttt["runner"]}. Task `toss_to_target` (paper_toss otherwise) over a grid of '
+        f'{len(ttt["targets"]) + len(refused)} targets on the front table (x {ttt["grid"]["x"]},'
+        f' y {ttt["grid"]["y"]} m): for each, the release planner (core/toss_planning.py) '
+        f'chooses the release point, direction and speed (at most '
+        f'{ttt["max_release_speed"]:g} m/s); a target it cannot serve is refused with its '
+        f'reason, not attempted. Landing error = horizontal distance between the measured '
+        f'landing of the box centre and the target; a hit is within '
         f'{number(ttt["landing_limit"], 0, 1000.0, "mm")}.',
         '',
-        f'Landing error over {errors["count"]} targets: mean {number(errors["mean"], 1, 1000.0)}'
-        f' ± {number(errors["std"], 1, 1000.0)} mm, max {number(errors["max"], 1, 1000.0)} mm; '
-        f'{ttt["hit_count"]}/{len(ttt["targets"])} hits, {errors["missing"]} without a landing. '
-        f'The landings fall short of the targets, toward the release point, by '
-        f'{number(ttt["shortfall"]["mean"], 1, 1000.0, "mm")} on average, while the ballistic '
-        f'prediction from the measured release state matches the measured landing within '
-        f'{number(ttt["landing_prediction_error"]["mean"], 1, 1000.0, "mm")} on average: the '
-        f'error comes from the release state (mean release position error '
-        f'{number(ttt["release_position_error"]["mean"], 1, 1000.0, "mm")}), not the flight.',
+        f'Landing error over {errors["count"]} attempted targets: median '
+        f'{number(errors.get("median"), 1, 1000.0)} mm, p95 {number(errors.get("p95"), 1, 1000.0)}'
+        f' mm, max {number(errors["max"], 1, 1000.0)} mm; {ttt["hit_count"]}/'
+        f'{len(ttt["targets"])} hits, {errors["missing"]} without a landing; mean signed offset '
+        f'(landing - target) x {number(bias[0], 1, 1000.0)} mm, y {number(bias[1], 1, 1000.0)} mm.'
+        f' Ballistic prediction from the measured release state vs measured landing: mean '
+        f'{number(ttt["landing_prediction_error"]["mean"], 1, 1000.0, "mm")}. Success (all '
+        f'episode criteria, pad slip <= 10 mm included): {ttt["success_count"]}/'
+        f'{len(ttt["targets"])}.',
         '',
-        table(('target (x, y) [m]', 'release speed [m/s]', 'elevation [deg]',
-               'landing (x, y) [m]', 'landing error [mm]', 'release pos. error [mm]',
-               'release vel. error [%]', 'hit'), rows),
+        table(('target (x, y) [m]', 'release point [m]', 'release speed [m/s]',
+               'elevation [deg]', 'landing error [mm]', 'release speed error [%]',
+               'release direction error [deg]', 'slip [mm]', 'hit'), rows),
+        '',
+        *(f'Refused: ({item["target"][0]:.2f}, {item["target"][1]:+.2f}): {item["reason"]}'
+          for item in refused), '',
         '', plot_links(results, 'toss_to_target', link_root), '']
     return out

@@ -8,7 +8,8 @@ MARKER_PERIOD) markers. With `lockstep` a tick waits for both arms' joint states
 and the tracker's estimate, all stamped with it (other cycles only advance the schedule); in
 realtime each left joint state triggers a cycle with the newest of the others (take-latest).
 Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start time and
-rates. Services start an episode, send the arms home and reset.
+rates. Services start an episode, send the arms home and reset. A point on /dual_arm/landing_target
+(frame world) re-plans the toss's release state for it, or is refused with the reason.
 """
 
 import sys
@@ -31,6 +32,7 @@ from dual_arm_control.runtime.motion_step import MotionGeneratorStep
 from dual_arm_control.runtime.node_settings import node_table
 from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.scenario import load_scenario
+import numpy as np
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
@@ -95,6 +97,8 @@ class DsMotionGenerator(Node):
         self.create_subscription(contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
                                  lambda msg: self._on_input('object', msg),
                                  contract.OBJECT_STATE.subscription_qos(lockstep))
+        self.create_subscription(contract.LANDING_TARGET.msg_type, contract.LANDING_TARGET.name,
+                                 self._on_landing_target, contract.LANDING_TARGET.qos)
         for service, command in ((contract.START_EPISODE_SERVICE, 'start'),
                                  (contract.GO_HOME_SERVICE, 'go_home'),
                                  (contract.RESET_EPISODE_SERVICE, 'reset')):
@@ -109,6 +113,21 @@ class DsMotionGenerator(Node):
 
     def _on_config(self, config):
         self.step.reconfigure(config)
+
+    def _on_landing_target(self, msg):
+        target = np.array([msg.point.x, msg.point.y, msg.point.z])
+        if msg.header.frame_id not in ('', contract.WORLD_FRAME) or not np.all(
+                np.isfinite(target)):
+            self.step.refusals.refuse(
+                'landing_target', f'landing target {target.tolist()} in frame '
+                f'{msg.header.frame_id!r} refused: finite coordinates in '
+                f'{contract.WORLD_FRAME!r} expected')
+            return
+        if not self.step.set_landing_target(target):
+            toss = self.step.pending_config.toss
+            self.get_logger().info(
+                f'landing target {np.round(target, 3).tolist()} m: release at '
+                f'{np.round(toss.release_position, 3).tolist()} m, {toss.toss_speed:.2f} m/s')
 
     def _on_command(self, command, response):
         self.step.request(command)

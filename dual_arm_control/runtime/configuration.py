@@ -3,8 +3,9 @@
 from dataclasses import replace
 
 from dual_arm_control.core.arms import ARMS
-from dual_arm_control.core.ballistics import release_velocity_minimum_speed
+from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.toss_planning import plan_release
 import numpy as np
 
 # The place DS aims this far below the box's resting pose [m], so the table, not the release,
@@ -28,13 +29,26 @@ def motion_config_for_scenario(scenario, cell, base=None):
         toss = replace(toss, release_position=tuple(scenario.release.position),
                        release_direction=tuple(velocity), toss_speed=float(
                            np.linalg.norm(velocity)))
-    elif scenario.landing_target is not None:
-        solution = release_velocity_minimum_speed(np.asarray(toss.release_position),
-                                                  np.asarray(scenario.landing_target))
-        toss = replace(toss, release_direction=tuple(solution.velocity),
-                       toss_speed=float(solution.speed))
     config = replace(config, toss=toss)
+    if scenario.landing_target is not None:
+        config = config_for_landing_target(config, scenario.landing_target)
     if scenario.place is not None:
         pressed = np.asarray(scenario.place, dtype=float) - [0.0, 0.0, PLACE_PRESS_DEPTH]
         config = replace(config, place=replace(base.place, position=tuple(pressed)))
     return config
+
+
+def config_for_landing_target(config, target):
+    """
+    Return config with the toss release planned for landing target (3,) [m] (object centre).
+
+    The release point, direction and speed come from core.toss_planning.plan_release over the
+    config's release region, pulled toward the default release point. Raises
+    UnreachableTargetError with the reason when no release state serves the target.
+    """
+    plan = plan_release(np.asarray(target, dtype=float),
+                        np.asarray(TossConfig().release_position), config.release_planning)
+    speed = float(np.linalg.norm(plan.velocity))
+    return replace(config, toss=replace(config.toss, release_position=tuple(plan.position),
+                                        release_direction=tuple(plan.velocity / speed),
+                                        toss_speed=speed))

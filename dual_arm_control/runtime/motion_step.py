@@ -11,7 +11,10 @@ An episode starts on request, or by itself at auto_start_ns once an object estim
 and only if both arms can reach their grasp frames within their joint limits (core
 reachability, checked once at the start with the estimate; a shifted grasp is used when the
 centred one is out of reach). An unreachable grasp is refused with its reason: the arms stay in
-standby and the tick's phase carries the event 'unreachable'. A tick whose inputs the generator
+standby and the tick's phase carries the event 'unreachable'. A landing target given while the
+episode runs (set_landing_target) re-plans the release state (core.toss_planning) and applies it
+at the next tick, until the box is released; a target no release serves, or one that comes after
+the release, is refused with its reason. A tick whose inputs the generator
 refuses is answered with a stop command (zero velocity at the
 current tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
 """
@@ -19,10 +22,13 @@ current tool pose), so the controllers damp the arms to rest instead of waiting 
 from dataclasses import dataclass
 
 from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.ballistics import UnreachableTargetError
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import (ArmCommand, ArmMeasurement,
                                                     DualArmMotionGenerator, ObjectMeasurement)
+from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.reachability import plan_grasp
+from dual_arm_control.runtime.configuration import config_for_landing_target
 from dual_arm_control.runtime.inputs import RefusalCounter
 from dual_arm_control.runtime.signals import arm_command_from, PhaseSample, TwistSample
 from dual_arm_control.runtime.timing import estimate_at, TickSchedule
@@ -64,6 +70,7 @@ class MotionGeneratorStep:
         self.refusals = RefusalCounter(on_refusal)
         self.time_resets = 0
         self._pending_config = None
+        self._landing_target = None
         self._start_over(config)
 
     def _start_over(self, config):
@@ -80,6 +87,11 @@ class MotionGeneratorStep:
         return self._generator.config
 
     @property
+    def pending_config(self):
+        """Return the configuration the next tick applies (the current one if none pends)."""
+        return self._pending_config or self._generator.config
+
+    @property
     def phase(self):
         """Return the current core Phase."""
         return self._generator.phase
@@ -90,8 +102,34 @@ class MotionGeneratorStep:
         return self._last_tick
 
     def reconfigure(self, config):
-        """Apply config at the next tick (the phase and filters are kept)."""
+        """Apply config at the next tick (the phase and filters are kept, and a landing target)."""
+        if self._landing_target is not None:
+            try:
+                config = config_for_landing_target(config, self._landing_target)
+            except UnreachableTargetError as error:
+                self._landing_target = None
+                self.refusals.refuse('landing_target', f'landing target dropped: {error}')
         self._pending_config = config
+
+    def set_landing_target(self, target):
+        """
+        Toss to landing target (3,) [m] (object centre at rest) from the next tick on.
+
+        Return '' when the new release state is planned, else the reason it is refused (also
+        counted as refusal 'landing_target').
+        """
+        config = self._pending_config or self._generator.config
+        if self._generator.phase in (Phase.RELEASE, Phase.RETRACT):
+            reason = f'landing target {np.round(target, 3).tolist()} m came after the release'
+        else:
+            try:
+                self._pending_config = config_for_landing_target(config, target)
+                self._landing_target = np.array(target, dtype=float)
+                return ''
+            except (UnreachableTargetError, InputError) as error:
+                reason = str(error)
+        self.refusals.refuse('landing_target', reason)
+        return reason
 
     def request(self, command):
         """Ask for 'start', 'go_home' or 'reset' at the next tick."""
