@@ -19,7 +19,9 @@ import time
 from dual_arm_control import contract
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.info import inspect_bag, main as bag_info_main
-from dual_arm_control.bags.schema import first_field_type, message_definition, type_name
+from dual_arm_control.bags.reader import BagReader
+from dual_arm_control.bags.schema import (dependency_names, first_field_type,
+                                          message_definition, msg_file, type_name)
 from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, METADATA_NAME,
                                           split_path)
 from dual_arm_control.graph import full_graph, RECORDER_NODE
@@ -31,11 +33,14 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
+from mcap.writer import Writer
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+from sensor_msgs.msg import JointState
 
 SCRIPTS = Path(sys.prefix) / 'bin'
 REPOSITORY = Path(__file__).resolve().parents[1]
@@ -81,7 +86,12 @@ def read_messages(paths):
 
 @pytest.mark.parametrize('name', contract_types())
 def test_definition_describes_the_installed_type(name):
-    """Rosbags parses the definition into the fields of the rclpy class, with dependencies."""
+    """
+    Rosbags parses the definition into the fields of the rclpy class, with dependencies.
+
+    Every complex field type of every section has a 'MSG:' section of exactly that name (how
+    Foxglove resolves it), and the text starts with the type's own .msg file.
+    """
     definition = message_definition(name)
     parsed = get_types_from_msg(definition, name)
     package, _, short_name = name.split('/')
@@ -89,16 +99,26 @@ def test_definition_describes_the_installed_type(name):
     assert [field for field, _ in parsed[name][1]] == list(msg_class.get_fields_and_field_types())
     dependencies = [line[5:] for line in definition.splitlines() if line.startswith('MSG: ')]
     assert len(dependencies) == len(set(dependencies)) == len(parsed) - 1
-    assert definition.count('=' * 80 + '\n') == len(dependencies)
+    assert definition.count('\n' + '=' * 80 + '\n') == len(dependencies)
+    sections = definition.split('\n' + '=' * 80 + '\n')
+    assert sections[0] == msg_file(name).read_text()
+    referenced = set(dependency_names(sections[0], package))
+    for section in sections[1:]:
+        heading, _, text = section.partition('\n')
+        referenced |= set(dependency_names(text, heading[5:].split('/')[0]))
+    assert referenced == set(dependencies)
 
 
-def test_definition_of_odometry_lists_header_and_time():
-    """Odometry needs Header, Time, the covariance types and the geometry leaves."""
+def test_definition_of_odometry_is_what_rosbag2_writes():
+    """Depth first, sorted per type, each dependency named as its field spells it."""
     definition = message_definition('nav_msgs/msg/Odometry')
     dependencies = [line[5:] for line in definition.splitlines() if line.startswith('MSG: ')]
-    assert dependencies[:2] == ['std_msgs/msg/Header', 'builtin_interfaces/msg/Time']
-    assert {'geometry_msgs/msg/PoseWithCovariance', 'geometry_msgs/msg/Quaternion',
-            'geometry_msgs/msg/Vector3'} <= set(dependencies)
+    assert dependencies == [
+        'geometry_msgs/PoseWithCovariance', 'geometry_msgs/Pose', 'geometry_msgs/Point',
+        'geometry_msgs/Quaternion', 'geometry_msgs/TwistWithCovariance', 'geometry_msgs/Twist',
+        'geometry_msgs/Vector3', 'std_msgs/Header', 'builtin_interfaces/Time']
+    assert '\nstd_msgs/Header header' in definition
+    assert '\n\n' + '=' * 80 + '\nMSG: std_msgs/Header\n' in definition
     assert first_field_type('nav_msgs/msg/Odometry') == 'std_msgs/msg/Header'
     assert first_field_type('std_msgs/msg/Bool') == 'bool'
 
@@ -107,6 +127,25 @@ def test_unknown_type_is_refused_with_its_name():
     """A type without a .msg file under share/ is a BagError naming it."""
     with pytest.raises(BagError, match='no_such_msgs/msg/Thing'):
         message_definition('no_such_msgs/msg/Thing')
+
+
+def test_reader_reads_bags_with_the_earlier_schema_headings(tmp_path):
+    """Bags written before the headings followed rosbag2 ('MSG: std_msgs/msg/Header') read."""
+    path = tmp_path / 'earlier.mcap'
+    definition = message_definition('sensor_msgs/msg/JointState').replace(
+        'MSG: std_msgs/Header', 'MSG: std_msgs/msg/Header').replace(
+        'MSG: builtin_interfaces/Time', 'MSG: builtin_interfaces/msg/Time')
+    with open(path, 'wb') as stream:
+        writer = Writer(stream)
+        writer.start(profile='ros2', library='dual_arm_control')
+        schema = writer.register_schema('sensor_msgs/msg/JointState', 'ros2msg',
+                                        definition.encode())
+        channel = writer.register_channel('/js', 'cdr', schema)
+        for index in range(3):
+            writer.add_message(channel, index, joint_state_cdr(index, 0, [index]), index)
+        writer.finish()
+    messages = list(BagReader(path).messages())
+    assert [deserialize_message(m.data, JointState).position[0] for m in messages] == [0, 1, 2]
 
 
 # -- writer ------------------------------------------------------------------------------------
