@@ -30,3 +30,12 @@ if [[ ! -f $tf_stamp || tools/build_tf2_msgs.py -nt $tf_stamp || interfaces/tf2_
   fi
   touch "$tf_stamp"
 fi
+# Foxglove's decoders for the bag tests (test/foxglove), pinned by its lock file; reinstalled only
+# when the lock file changed since the last install.
+foxglove=test/foxglove
+if ! command -v npm >/dev/null; then
+  echo 'bootstrap.sh: npm not found: test/test_bags.py needs Node.js and npm (test/foxglove)' >&2
+elif ! cmp -s "$foxglove/package-lock.json" "$foxglove/node_modules/.installed-lock.json"; then
+  (cd "$foxglove" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error)
+  cp "$foxglove/package-lock.json" "$foxglove/node_modules/.installed-lock.json"
+fi

@@ -179,13 +179,15 @@ def start_recorder(out_dir, env, scenario=None):
     Start bag_record into OUT/bag.mcap and wait until its subscriptions exist (--record).
 
     Returns the process; the graph starts afterwards. The scenario file, if any, is stored in
-    the bag's metadata.
+    the bag's metadata. Like every output in OUT, the bag replaces the previous run's; its log
+    times are the graph's sim time.
     """
     log_path = Path(out_dir) / 'logs' / 'bag_record.log'
     log_path.parent.mkdir(parents=True, exist_ok=True)
     with open(log_path, 'w') as log_file:
         process = subprocess.Popen(
-            executable_command('bag_record') + ['-o', str(Path(out_dir) / 'bag.mcap')]
+            executable_command('bag_record')
+            + ['-o', str(Path(out_dir) / 'bag.mcap'), '--overwrite', '--use-sim-time']
             + ([] if scenario is None else ['--metadata', f'scenario={scenario}']),
             stdout=log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
             preexec_fn=_die_with_parent)
@@ -229,8 +231,8 @@ def parse_arguments(argv=None):
     parser.add_argument('--timeout', type=float, default=600.0,
                         help='wall-clock limit of an episode [s]')
     parser.add_argument('--record', action='store_true',
-                        help='record the graph topics into OUT/bag.mcap (bag_record, started '
-                             'before the nodes)')
+                        help='record the graph topics into OUT/bag.mcap, replacing the previous '
+                             "run's (bag_record on sim time, started before the nodes)")
     return parser.parse_args(argv)
 
 

@@ -24,8 +24,7 @@ from dual_arm_control.bags.offered_qos import (DEFAULT_QOS, parse_offered_qos_pr
 from dual_arm_control.bags.playback import (parse_remaps, playback_window, select_topics,
                                             wall_offset)
 from dual_arm_control.bags.reader import BagReader
-from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, offered_qos_profiles,
-                                          split_path)
+from dual_arm_control.bags.writer import BagWriter, header_stamp_ns, offered_qos_profiles
 from dual_arm_control.graph import full_graph, run_parameters
 from dual_arm_control.nodes.bag_play import main as bag_play_main, split_arguments
 from dual_arm_control.nodes.messages import stamp_ns
@@ -120,9 +119,11 @@ def test_split_files_are_merged_in_log_time_order(tmp_path):
     without one, from the file names in natural order).
     """
     path = tmp_path / 'run.mcap'
-    for index in range(2):
-        with BagWriter(split_path(path, index), chunk_size=512) as writer:
-            writer.add_topic('/sim/joint_states', JointState, contract.CONTROL_QOS)
+    with BagWriter(path, chunk_size=512) as writer:
+        writer.add_topic('/sim/joint_states', JointState, contract.CONTROL_QOS)
+        for index in range(2):
+            if index:
+                writer.split()
             for k in range(index, 40, 2):
                 writer.write('/sim/joint_states', joint_state(k * MS, k), BASE_NS + k * MS)
             writer.write('/sim/joint_states', joint_state(0, 100 + index), BASE_NS + 50 * MS)
@@ -146,7 +147,9 @@ def test_split_files_are_merged_in_log_time_order(tmp_path):
     assert from_folder == [m.data for m in messages]
     assert BagReader(folder).files == [folder / 'part_10.mcap', folder / 'part_2.mcap']
     (folder / 'metadata.yaml').unlink()
-    assert BagReader(folder).files == [folder / 'part_2.mcap', folder / 'part_10.mcap']
+    (folder / 'part_10.mcap').rename(folder / 'part_9.mcap')
+    (folder / 'part_2.mcap').rename(folder / 'part_11.mcap')
+    assert BagReader(folder).files == [folder / 'part_9.mcap', folder / 'part_11.mcap']
     (folder / 'metadata.yaml').write_text(
         'rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n'
         '  relative_file_paths: [x.db3]\n')

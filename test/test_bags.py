@@ -4,13 +4,18 @@ MCAP bags: ros2msg definitions, the writer, the recorder on the real graph, bag_
 The graph test records a lockstep paper_toss run (1 s of sim time) and checks the bag against
 what the publishers counted (each node prints its published counts on exit) and against what
 the bridge provably stepped: every cycle's state and command, one phase per DS tick.
-rosbags (an independent reader) must decode every message.
+Foxglove's own decoders (test/foxglove, run with Node), rosbags and our reader must decode
+every message of it alike.
 """
 
+import array
+import dataclasses
 import json
+import math
 import os
 from pathlib import Path
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -19,27 +24,37 @@ import time
 from dual_arm_control import contract
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.info import inspect_bag, main as bag_info_main
-from dual_arm_control.bags.schema import first_field_type, message_definition, type_name
+from dual_arm_control.bags.reader import BagReader
+from dual_arm_control.bags.schema import (dependency_names, first_field_type,
+                                          message_definition, msg_file, type_name)
 from dual_arm_control.bags.writer import (BagWriter, header_stamp_ns, METADATA_NAME,
-                                          split_path)
+                                          SPLIT_METADATA_NAME, split_path)
+from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.graph import full_graph, RECORDER_NODE
+from dual_arm_control.nodes.bag_record import main as bag_record_main, message_class
 from dual_arm_control.nodes.process import PUBLISHED_COUNTS_PREFIX
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
+from dual_arm_control.tools.param_events import parameter_changes
 from dual_arm_control.trajectory_log import load_trajectory
 from graph_helpers import GraphProbe, record_episode, ros_environment
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
+from mcap.writer import Writer
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 
 SCRIPTS = Path(sys.prefix) / 'bin'
 REPOSITORY = Path(__file__).resolve().parents[1]
 SCENARIO = REPOSITORY / 'config' / 'scenarios' / 'paper_toss.yaml'
+FOXGLOVE = REPOSITORY / 'test' / 'foxglove'
 SIM_DURATION = 1.0
 FRI_PERIOD_NS = seconds_to_ns(0.002)
 TICK_PERIOD = 0.005
@@ -81,7 +96,12 @@ def read_messages(paths):
 
 @pytest.mark.parametrize('name', contract_types())
 def test_definition_describes_the_installed_type(name):
-    """Rosbags parses the definition into the fields of the rclpy class, with dependencies."""
+    """
+    Rosbags parses the definition into the fields of the rclpy class, with dependencies.
+
+    Every complex field type of every section has a 'MSG:' section of exactly that name (how
+    Foxglove resolves it), and the text starts with the type's own .msg file.
+    """
     definition = message_definition(name)
     parsed = get_types_from_msg(definition, name)
     package, _, short_name = name.split('/')
@@ -89,16 +109,26 @@ def test_definition_describes_the_installed_type(name):
     assert [field for field, _ in parsed[name][1]] == list(msg_class.get_fields_and_field_types())
     dependencies = [line[5:] for line in definition.splitlines() if line.startswith('MSG: ')]
     assert len(dependencies) == len(set(dependencies)) == len(parsed) - 1
-    assert definition.count('=' * 80 + '\n') == len(dependencies)
+    assert definition.count('\n' + '=' * 80 + '\n') == len(dependencies)
+    sections = definition.split('\n' + '=' * 80 + '\n')
+    assert sections[0] == msg_file(name).read_text()
+    referenced = set(dependency_names(sections[0], package))
+    for section in sections[1:]:
+        heading, _, text = section.partition('\n')
+        referenced |= set(dependency_names(text, heading[5:].split('/')[0]))
+    assert referenced == set(dependencies)
 
 
-def test_definition_of_odometry_lists_header_and_time():
-    """Odometry needs Header, Time, the covariance types and the geometry leaves."""
+def test_definition_of_odometry_is_what_rosbag2_writes():
+    """Depth first, sorted per type, each dependency named as its field spells it."""
     definition = message_definition('nav_msgs/msg/Odometry')
     dependencies = [line[5:] for line in definition.splitlines() if line.startswith('MSG: ')]
-    assert dependencies[:2] == ['std_msgs/msg/Header', 'builtin_interfaces/msg/Time']
-    assert {'geometry_msgs/msg/PoseWithCovariance', 'geometry_msgs/msg/Quaternion',
-            'geometry_msgs/msg/Vector3'} <= set(dependencies)
+    assert dependencies == [
+        'geometry_msgs/PoseWithCovariance', 'geometry_msgs/Pose', 'geometry_msgs/Point',
+        'geometry_msgs/Quaternion', 'geometry_msgs/TwistWithCovariance', 'geometry_msgs/Twist',
+        'geometry_msgs/Vector3', 'std_msgs/Header', 'builtin_interfaces/Time']
+    assert '\nstd_msgs/Header header' in definition
+    assert '\n\n' + '=' * 80 + '\nMSG: std_msgs/Header\n' in definition
     assert first_field_type('nav_msgs/msg/Odometry') == 'std_msgs/msg/Header'
     assert first_field_type('std_msgs/msg/Bool') == 'bool'
 
@@ -107,6 +137,25 @@ def test_unknown_type_is_refused_with_its_name():
     """A type without a .msg file under share/ is a BagError naming it."""
     with pytest.raises(BagError, match='no_such_msgs/msg/Thing'):
         message_definition('no_such_msgs/msg/Thing')
+
+
+def test_reader_reads_bags_with_the_earlier_schema_headings(tmp_path):
+    """Bags written before the headings followed rosbag2 ('MSG: std_msgs/msg/Header') read."""
+    path = tmp_path / 'earlier.mcap'
+    definition = message_definition('sensor_msgs/msg/JointState').replace(
+        'MSG: std_msgs/Header', 'MSG: std_msgs/msg/Header').replace(
+        'MSG: builtin_interfaces/Time', 'MSG: builtin_interfaces/msg/Time')
+    with open(path, 'wb') as stream:
+        writer = Writer(stream)
+        writer.start(profile='ros2', library='dual_arm_control')
+        schema = writer.register_schema('sensor_msgs/msg/JointState', 'ros2msg',
+                                        definition.encode())
+        channel = writer.register_channel('/js', 'cdr', schema)
+        for index in range(3):
+            writer.add_message(channel, index, joint_state_cdr(index, 0, [index]), index)
+        writer.finish()
+    messages = list(BagReader(path).messages())
+    assert [deserialize_message(m.data, JointState).position[0] for m in messages] == [0, 1, 2]
 
 
 # -- writer ------------------------------------------------------------------------------------
@@ -153,6 +202,99 @@ def test_writer_refuses_bad_use(tmp_path):
     writer.close()
     with pytest.raises(BagError, match='closed'):
         writer.write('/nope', b'\x00\x01\x00\x00', 1)
+
+
+def test_existing_bag_is_replaced_only_with_overwrite(tmp_path, capsys):
+    """
+    A bag (file and split files) at the output is kept unless overwrite; bag_record exits 2.
+
+    With overwrite every file of the old set goes, so no stale split file is left behind.
+    """
+    path = tmp_path / 'run.mcap'
+    with BagWriter(path) as writer:
+        writer.add_topic('/js', 'sensor_msgs/msg/JointState', contract.CONTROL_QOS)
+        writer.write('/js', joint_state_cdr(1, 0, [1.0]), 1)
+        writer.split()
+        writer.write('/js', joint_state_cdr(2, 0, [2.0]), 2)
+    before = {p.name: p.read_bytes() for p in writer.paths}
+    assert sorted(before) == ['run.mcap', 'run_1.mcap']
+    with pytest.raises(BagError, match='run.mcap: a bag is already there.*without overwrite'):
+        BagWriter(path)
+    assert bag_record_main(['bag_record', '-o', str(path)]) == 2
+    assert 'already exists' in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in tmp_path.glob('*.mcap')} == before
+    with BagWriter(path, overwrite=True) as writer:
+        writer.add_topic('/js', 'sensor_msgs/msg/JointState', contract.CONTROL_QOS)
+        writer.write('/js', joint_state_cdr(3, 0, [3.0]), 3)
+    assert sorted(p.name for p in tmp_path.glob('*.mcap')) == ['run.mcap']
+    messages = list(BagReader(path).messages())
+    assert [deserialize_message(m.data, JointState).position[0] for m in messages] == [3.0]
+
+
+def write_split_bag(path, files, overwrite=False):
+    """Write a bag of `files` split files, one JointState each (position = file index)."""
+    with BagWriter(path, overwrite=overwrite) as writer:
+        writer.add_topic('/js', 'sensor_msgs/msg/JointState', contract.CONTROL_QOS)
+        for index in range(files):
+            if index:
+                writer.split()
+            writer.write('/js', joint_state_cdr(index, 0, [index]), index)
+    return writer
+
+
+def test_split_files_are_read_as_one_recording_or_refused(tmp_path):
+    """
+    Every split file names its recording and index; a stale or missing split is a BagError.
+
+    A stale run_1.mcap from an earlier recording beside a new run.mcap (by the reader and the
+    tools that read bags), and a set whose split 1 is missing, are refused naming the file; a
+    later split reads alone; files without the marks still read as a set.
+    """
+    old = write_split_bag(tmp_path / 'old' / 'run.mcap', 3)
+    new = write_split_bag(tmp_path / 'run.mcap', 1)
+    marks = []
+    for path in old.paths:
+        with open(path, 'rb') as stream:
+            marks.append({r.name: r.metadata for r in make_reader(stream).iter_metadata()})
+    assert marks == [{SPLIT_METADATA_NAME: {'recording_id': old.recording_id,
+                                            'split_index': str(index)}} for index in range(3)]
+    assert old.recording_id != new.recording_id
+    assert len(list(BagReader(old.paths[0]).messages())) == 3
+    assert BagReader(old.paths[1]).files == [old.paths[1]]
+    stale = tmp_path / 'run_1.mcap'
+    shutil.copy(old.paths[1], stale)
+    with pytest.raises(BagError, match=f'{stale} is not part of the recording in .*run.mcap.*'
+                                       'stale split file'):
+        BagReader(new.paths[0])
+    with pytest.raises(InputError, match='stale split file'):
+        parameter_changes(new.paths[0])
+    old.paths[1].unlink()
+    old.paths[2].rename(old.paths[1])
+    with pytest.raises(BagError, match='run_1.mcap: split 2 of its recording where split 1 '
+                                       'belongs; a split file is missing'):
+        BagReader(old.paths[0])
+    for index in range(2):
+        with open(tmp_path / f'plain_{index}.mcap' if index else tmp_path / 'plain.mcap',
+                  'wb') as stream:
+            writer = Writer(stream)
+            writer.start(profile='ros2', library='other')
+            schema = writer.register_schema(
+                'sensor_msgs/msg/JointState', 'ros2msg',
+                message_definition('sensor_msgs/msg/JointState').encode())
+            channel = writer.register_channel('/js', 'cdr', schema)
+            writer.add_message(channel, index, joint_state_cdr(index, 0, [index]), index)
+            writer.finish()
+    assert len(list(BagReader(tmp_path / 'plain.mcap').messages())) == 2
+
+
+@pytest.mark.parametrize('main', [bag_record_main, bag_info_main])
+def test_help_documents_the_exit_codes(main, capsys):
+    """bag_record --help and bag_info --help end with their exit codes."""
+    with pytest.raises(SystemExit) as stop:
+        main(['bag_record', '--help'] if main is bag_record_main else ['--help'])
+    assert stop.value.code == 0
+    epilog = capsys.readouterr().out.split('exit codes:')[1]
+    assert '0 ' in epilog and '1 ' in epilog and '2 bad' in epilog
 
 
 def test_header_stamp_reads_both_byte_orders():
@@ -208,7 +350,7 @@ def graph_bag(tmp_path_factory):
                       '    wait_for_recorder: true\n'
                       f'    wait_for_nodes: {json.dumps(awaited)}\n')
     bag = tmp_path / 'graph.mcap'
-    recorder, log_path = start_recorder(tmp_path, domain_id, bag)
+    recorder, log_path = start_recorder(tmp_path, domain_id, bag, '--use-sim-time')
     try:
         started = time.monotonic()
         bringup = subprocess.run(
@@ -287,15 +429,46 @@ def test_recorded_counts_match_what_was_published(graph_bag):
           f'{len(published)} topics, {sum(published.values())} messages')
     log_times = [log_time for _, log_time, _, _ in records]
     assert all(b >= a for a, b in zip(log_times, log_times[1:]))
-    clock = [log_time for name, log_time, _, _ in records if name == contract.CLOCK.name]
-    span = (clock[-1] - clock[0]) * 1e-9
     size = sum(len(data) for *_, data in records)
+    wall = measurements['graph_wall']
     print(f'\nrecorded {len(records)} messages ({size / 1e6:.2f} MB serialized, bag '
-          f'{bag.stat().st_size / 1e6:.2f} MB) in {span:.2f} s of graph traffic: '
-          f'{len(records) / span:.0f} msg/s, {size / 1e6 / span:.2f} MB/s; recorder CPU '
-          f'{measurements["recorder_cpu"]:.2f} s over the {measurements["graph_wall"]:.1f} s '
-          f'graph run ({100 * measurements["recorder_cpu"] / measurements["graph_wall"]:.0f} % '
-          f'of one core)')
+          f'{bag.stat().st_size / 1e6:.2f} MB) over the {wall:.1f} s graph run (wall, start-up '
+          f'included): {len(records) / wall:.0f} msg/s; recorder CPU '
+          f'{measurements["recorder_cpu"]:.2f} s ({100 * measurements["recorder_cpu"] / wall:.0f}'
+          ' % of one core)')
+
+
+def test_log_times_are_the_sim_time_of_receipt(graph_bag):
+    """
+    Recorded with use_sim_time, log time is the recorder's sim time when a message arrived.
+
+    Every log time is a sim time the bridge published on /clock (or 0 before the first);
+    messages without a header have publish time = log time. /clock and stamped messages are
+    logged at their own sim time, typically (median) within one FRI cycle: the recorder's clock
+    follows /clock through its own subscription, and under load the recorder may work off a
+    backlog at a later sim time, so single messages can be logged later.
+    """
+    bag, _, _ = graph_bag
+    records = read_messages([bag])
+    topics = BagReader(bag).topics
+    clock_values = [deserialize_message(data, Clock).clock for name, _, _, data in records
+                    if name == contract.CLOCK.name]
+    clock_ns = [value.sec * 1_000_000_000 + value.nanosec for value in clock_values]
+    clock_logs = [log_time for name, log_time, _, _ in records if name == contract.CLOCK.name]
+    assert {log_time for _, log_time, _, _ in records} <= {0, *clock_ns}
+    clock_lags = sorted(abs(now - logged) for logged, now in zip(clock_logs, clock_ns))
+    assert clock_lags[len(clock_lags) // 2] <= FRI_PERIOD_NS, clock_lags
+    lags = []
+    for name, log_time, publish_time, data in records:
+        if first_field_type(topics[name].type_name) == 'std_msgs/msg/Header':
+            lags.append(abs(log_time - publish_time))
+        else:
+            assert publish_time == log_time, name
+    lags.sort()
+    print(f'\n|log time - header stamp| over {len(lags)} stamped messages: median '
+          f'{lags[len(lags) // 2] / 1e6:.1f} ms, 99 % {lags[len(lags) * 99 // 100] / 1e6:.1f} '
+          f'ms, max {lags[-1] / 1e6:.1f} ms of sim time')
+    assert lags[len(lags) // 2] <= FRI_PERIOD_NS, lags[-10:]
 
 
 def test_independent_readers_agree(graph_bag):
@@ -327,6 +500,107 @@ def test_independent_readers_agree(graph_bag):
     info = inspect_bag(bag)
     assert info.status == 'complete' and info.compressions == {'zstd'}
     assert {name: topic.count for name, topic in info.topics.items() if topic.count} == scanned
+
+
+def float_values(value, out):
+    """Append the float fields of a decoded message (rclpy or rosbags), in field order."""
+    if isinstance(value, float):
+        out.append(value)
+    elif isinstance(value, np.ndarray) and value.dtype.kind == 'f':
+        out.extend(float(item) for item in value)
+    elif isinstance(value, array.array):
+        out.extend(value if value.typecode in 'fd' else ())
+    elif isinstance(value, (list, tuple, np.ndarray)):
+        for item in value:
+            float_values(item, out)
+    elif hasattr(value, 'get_fields_and_field_types'):
+        for name in value.get_fields_and_field_types():
+            float_values(getattr(value, name), out)
+    elif dataclasses.is_dataclass(value):
+        for field in dataclasses.fields(value):
+            float_values(getattr(value, field.name), out)
+    return out
+
+
+def decoded_row(log_time, msg):
+    """
+    Return what decode_bag.mjs prints of a message: [log time, header stamp, first float, sum, n].
+
+    Times as decimal text, the stamp None without a header, NaN and infinities as None; the sum
+    adds left to right as JavaScript does.
+    """
+    header = getattr(msg, 'header', None)
+    stamp = None if header is None else str(
+        header.stamp.sec * 1_000_000_000 + header.stamp.nanosec)
+    values = float_values(msg, [])
+    total = 0.0
+    for value in values:
+        total += value
+    first = values[0] if values else None
+    return [str(log_time), stamp, first if first is None or math.isfinite(first) else None,
+            total if math.isfinite(total) else None, len(values)]
+
+
+def foxglove_decode(paths):
+    """Run test/foxglove/decode_bag.mjs (Foxglove's libraries) on bag files; return its JSON."""
+    assert (FOXGLOVE / 'node_modules' / '@foxglove' / 'rosmsg2-serialization').is_dir(), (
+        f'the npm packages of {FOXGLOVE} are missing: run ./bootstrap.sh')
+    result = subprocess.run(['node', str(FOXGLOVE / 'decode_bag.mjs'), *map(str, paths)],
+                            capture_output=True, text=True, timeout=EPISODE_TIMEOUT)
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def test_foxglove_decodes_a_message_of_every_contract_type(tmp_path):
+    """Foxglove's rosmsg + rosmsg2-serialization decode one default message of each type."""
+    path = tmp_path / 'types.mcap'
+    expected = {}
+    with BagWriter(path) as writer:
+        for index, name in enumerate(contract_types()):
+            topic = f'/type_{index}'
+            msg = message_class(name)()
+            writer.add_topic(topic, name, contract.CONTROL_QOS)
+            writer.write(topic, serialize_message(msg), index)
+            expected[topic] = [decoded_row(index, msg)]
+    decoded = foxglove_decode([path])
+    assert {topic: (c['failures'], c['errors']) for topic, c in decoded.items()} == {
+        topic: (0, []) for topic in expected}
+    assert {topic: c['messages'] for topic, c in decoded.items()} == expected
+
+
+def test_foxglove_rosbags_and_our_reader_decode_every_message_alike(graph_bag):
+    """
+    Every message of every channel decodes with Foxglove's libraries, rosbags and our reader.
+
+    Per topic the three give the same messages in the same order: log time, header stamp, the
+    first float field and the sum and number of all float fields of each message.
+    """
+    bag, _, _ = graph_bag
+    foxglove = foxglove_decode([bag])
+    failed = {topic: c['errors'] for topic, c in foxglove.items() if c['failures']}
+    assert not failed, failed
+    from_foxglove = {topic: c['messages'] for topic, c in foxglove.items()}
+    ours = {}
+    reader = BagReader(bag)
+    for message in reader.messages():
+        msg = deserialize_message(message.data, message_class(message.type_name))
+        ours.setdefault(message.topic, []).append(decoded_row(message.log_time, msg))
+    from_rosbags = {}
+    with AnyReader([bag]) as rosbags_reader:
+        for connection, log_time, raw in rosbags_reader.messages():
+            msg = rosbags_reader.deserialize(raw, connection.msgtype)
+            from_rosbags.setdefault(connection.topic, []).append(decoded_row(log_time, msg))
+    counts = {topic: len(rows) for topic, rows in ours.items()}
+    assert {topic: c['count'] for topic, c in foxglove.items() if c['count']} == counts
+    assert counts == {name: t.count for name, t in reader.topics.items() if t.count}
+    for topic in counts:
+        assert from_foxglove[topic] == ours[topic], topic
+        assert from_rosbags[topic] == ours[topic], topic
+    stamped = [topic for topic, rows in ours.items() if rows[0][1] is not None]
+    joint_states = ours[contract.JOINT_STATES.resolved('left')]
+    assert len(stamped) >= 15 and {row[4] for row in joint_states} == {21}
+    print(f'\n{sum(counts.values())} messages on {len(counts)} topics ({len(stamped)} with a '
+          'header) decode alike with Foxglove, rosbags and our reader')
 
 
 def test_recorder_qos_follows_publishers():
@@ -452,10 +726,15 @@ def test_bringup_record_flag_writes_a_complete_bag(tmp_path):
     `dual_arm_bringup --record` leaves OUT/bag.mcap, complete, with every phase of the run.
 
     0.2 s of sim time: the phase is transient local, so all its ticks up to the last stepped
-    cycle (40 at 200 Hz) are recorded whatever the discovery timing.
+    cycle (40 at 200 Hz) are recorded whatever the discovery timing. The bag replaces an
+    earlier one in OUT with its split files, and its log times are sim time.
     """
     out = tmp_path / 'run'
+    out.mkdir()
+    for name in ('bag.mcap', 'bag_1.mcap'):
+        (out / name).write_bytes(b'an earlier run')
     record_episode(SCENARIO, out, 0.2, EPISODE_TIMEOUT)
+    assert not (out / 'bag_1.mcap').exists()
     info = inspect_bag(out / 'bag.mcap')
     assert info.status == 'complete', (out / 'logs' / 'bag_record.log').read_text()
     # Every DS tick of the 0.2 s; the first may be there several times: the DS re-answers the
@@ -476,4 +755,10 @@ def test_bringup_record_flag_writes_a_complete_bag(tmp_path):
     with open(out / 'bag.mcap', 'rb') as stream:
         metadata = {record.name: record.metadata
                     for record in make_reader(stream).iter_metadata()}
-    assert metadata == {METADATA_NAME: {'scenario': str(SCENARIO.resolve())}}
+    assert metadata[METADATA_NAME] == {'scenario': str(SCENARIO.resolve())}
+    assert metadata[SPLIT_METADATA_NAME]['split_index'] == '0'
+    clock = [message.log_time for _, channel, message in
+             make_reader(open(out / 'bag.mcap', 'rb')).iter_messages()
+             if channel.topic == contract.CLOCK.name]
+    assert 0 <= clock[0] <= clock[-1] <= seconds_to_ns(0.2 + 0.01)
+    assert '(zstd, sim time)' in (out / 'logs' / 'bag_record.log').read_text()

@@ -272,7 +272,11 @@ def format_report(summary):
 
 def main(argv=None):
     """Print the report of each bag file given; return 0 if all are complete, else 1."""
-    parser = argparse.ArgumentParser(prog='bag_info', description=__doc__.split('\n')[1])
+    parser = argparse.ArgumentParser(
+        prog='bag_info', description=__doc__.split('\n')[1],
+        epilog='exit codes: 0 every file is a complete bag; 1 a file is damaged (torn, '
+               'truncated, corrupt: the report shows what is recoverable), not an MCAP file or '
+               'unreadable; 2 bad arguments')
     parser.add_argument('paths', nargs='+', type=Path, help='MCAP bag file(s)')
     args = parser.parse_args(argv)
     status = 0

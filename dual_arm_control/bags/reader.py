@@ -5,7 +5,9 @@ Messages come out as raw CDR with topic, type name, log time and publish time, i
 order across all files of the bag (ties keep the recorded order). Each topic's offered QoS is
 read back from the 'offered_qos_profiles' channel metadata (bags/offered_qos.py). Damaged files
 (torn, truncated, corrupt: see bags/info.py) are refused unless recovery is asked for; then the
-messages of their complete records are read.
+messages of their complete records are read. Files that name their recording (BagWriter's
+split metadata) must be the splits 0, 1, ... of one recording, so a stale <stem>_N.mcap left by
+an earlier recording is refused instead of being read as a continuation.
 """
 
 from dataclasses import dataclass, field
@@ -17,10 +19,10 @@ import re
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.info import inspect_bag, MAGIC
 from dual_arm_control.bags.offered_qos import qos_from_offered_profiles
-from dual_arm_control.bags.writer import split_path
+from dual_arm_control.bags.writer import SPLIT_METADATA_NAME, split_path
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Channel, Message, Schema
+from mcap.records import Channel, Chunk, DataEnd, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 import yaml
 
@@ -72,17 +74,69 @@ def bag_files(path):
 
     A rosbag2 folder: the relative_file_paths of its metadata.yaml (or, without one, its
     .mcap files in name order). An .mcap file: it and its split continuations <stem>_1.mcap,
-    <stem>_2.mcap, ... as BagWriter names them.
+    <stem>_2.mcap, ... as BagWriter names them. The files must be one recording (see
+    check_one_recording).
     """
     path = Path(path)
     if path.is_dir():
-        return _folder_files(path)
-    if not path.is_file():
+        files = _folder_files(path)
+    elif not path.is_file():
         raise BagError(f'{path}: no such bag file or folder')
-    files = [path]
-    while split_path(path, len(files)).is_file():
-        files.append(split_path(path, len(files)))
+    else:
+        files = [path]
+        while split_path(path, len(files)).is_file():
+            files.append(split_path(path, len(files)))
+    check_one_recording(files)
     return files
+
+
+def split_mark(path):
+    """
+    Return the split metadata {'recording_id', 'split_index'} of a bag file, or None.
+
+    BagWriter writes it right after the MCAP header, so only the records before the first
+    chunk or message are read (also of a torn file).
+    """
+    try:
+        with open(path, 'rb') as stream:
+            for record in StreamReader(stream).records:
+                if isinstance(record, Metadata) and record.name == SPLIT_METADATA_NAME:
+                    return dict(record.metadata)
+                if isinstance(record, (Chunk, DataEnd, Message)):
+                    return None
+    except _READ_ERRORS:
+        return None
+    return None
+
+
+def check_one_recording(files):
+    """
+    Raise BagError unless the files are consecutive splits of one recording, in order.
+
+    The first file may be any split (a later part read alone). Files without split metadata
+    (other writers, bags from before it existed) pass when none of the set has any.
+    """
+    marks = [split_mark(file) for file in files]
+    if all(mark is None for mark in marks):
+        return
+    recording = (marks[0] or {}).get('recording_id')
+    first_index = (marks[0] or {}).get('split_index', '0')
+    if not first_index.isdigit():
+        raise BagError(f'{files[0]}: split_index {first_index!r} of its {SPLIT_METADATA_NAME} '
+                       'metadata is not a number')
+    first_index = int(first_index)
+    for position, (file, mark) in enumerate(zip(files, marks)):
+        mark = mark or {}
+        index = first_index + position
+        if mark.get('recording_id') != recording:
+            raise BagError(
+                f'{file} is not part of the recording in {files[0]}: it belongs to '
+                f'recording {mark.get("recording_id", "(none recorded)")}, '
+                f'{files[0].name} to {recording or "(none recorded)"}; a stale split file '
+                'from an earlier recording? Move or delete it')
+        if mark.get('split_index') != str(index):
+            raise BagError(f'{file}: split {mark.get("split_index")} of its recording '
+                           f'where split {index} belongs; a split file is missing')
 
 
 def _folder_files(folder):

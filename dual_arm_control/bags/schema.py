@@ -1,9 +1,12 @@
 """
 Message definitions in rosbag2's 'ros2msg' schema encoding, built from the installed .msg files.
 
-The complete definition of a type is its own .msg text followed by the text of every type it
-depends on (recursively, each once, in first-use order), each preceded by a line of 80 '=' and
-a line 'MSG: <package>/msg/<Type>', as rosbag2 writes them.
+The complete definition of a type is the text of its .msg file followed by the text of every
+type it depends on, depth first, each type once, the dependencies of one type in sorted order.
+Each dependency is headed by a blank line, a line of 80 '=' and 'MSG: <name>', where <name> is
+the type as the parent's field names it ('std_msgs/Header'; a bare 'Type' becomes
+'package/Type'). That is what rosbag2 (rosbag2_cpp LocalMessageDefinitionSource) writes, and
+Foxglove resolves a field's type by exactly that name.
 """
 
 import os
@@ -59,13 +62,14 @@ def msg_file(name):
                    f'share/ of {[str(p) for p in prefixes]} (AMENT_PREFIX_PATH)')
 
 
-def field_types(definition, package):
+def dependency_names(definition, package):
     """
-    Return the non-primitive field types of a .msg text as 'package/msg/Type', in order.
+    Return the non-primitive field types of a .msg text as written, in order.
 
-    Comments, blank lines and constants are skipped; array and bound suffixes are removed.
+    A bare 'Type' becomes 'package/Type'. Comments, blank lines and constants are skipped; array
+    and bound suffixes are removed.
     """
-    types = []
+    names = []
     for line in definition.splitlines():
         line = line.split('#', 1)[0].strip()
         if not line:
@@ -76,8 +80,8 @@ def field_types(definition, package):
         base = _ARRAY_SUFFIX.sub('', words[0])
         if _STRING_BOUND.match(base) or base in PRIMITIVE_TYPES:
             continue
-        types.append(normalized_type_name(base, package))
-    return types
+        names.append(base if '/' in base else f'{package}/{base}')
+    return names
 
 
 def first_field_type(name):
@@ -96,16 +100,17 @@ def first_field_type(name):
 
 def message_definition(msg_type):
     """Return the complete 'ros2msg' definition text of a message class or type name."""
-    root = type_name(msg_type)
-    sections = [msg_file(root).read_text()]
-    seen = {root}
-    pending = list(reversed(field_types(sections[0], root.split('/')[0])))
-    while pending:
-        name = pending.pop()
-        if name in seen:
-            continue
-        seen.add(name)
-        text = msg_file(name).read_text()
-        sections.append(f'{DEFINITION_SEPARATOR}\nMSG: {name}\n{text}')
-        pending.extend(reversed(field_types(text, name.split('/')[0])))
-    return '\n'.join(section.rstrip('\n') for section in sections) + '\n'
+    seen = set()
+
+    def with_dependencies(name):
+        text = msg_file(name).read_bytes().decode()
+        sections = [text]
+        package = normalized_type_name(name).split('/')[0]
+        for dependency in sorted(set(dependency_names(text, package))):
+            if dependency not in seen:
+                seen.add(dependency)
+                sections.append(f'\n{DEFINITION_SEPARATOR}\nMSG: {dependency}\n')
+                sections.append(with_dependencies(dependency))
+        return ''.join(sections)
+
+    return with_dependencies(type_name(msg_type))

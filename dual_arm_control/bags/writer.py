@@ -4,10 +4,14 @@ BagWriter: serialized ROS 2 messages into MCAP files in the rosbag2 layout, opti
 Each file has profile 'ros2', one 'ros2msg' schema per type with the complete definition, one
 'cdr' channel per topic with its offered QoS as 'offered_qos_profiles' metadata, chunked and
 compressed data, and a summary (statistics, chunk and message indexes) written on close.
+Every file also carries the MCAP metadata record SPLIT_METADATA_NAME with the recording's id and
+the file's index in the set, so a reader can tell a continuation from a stale file.
 """
 
 from pathlib import Path
+import re
 import struct
+import uuid
 
 from dual_arm_control.bags import BagError
 from dual_arm_control.bags.schema import first_field_type, HEADER_TYPE, message_definition
@@ -21,6 +25,9 @@ MESSAGE_ENCODING = 'cdr'
 DEFAULT_CHUNK_SIZE = 1024 * 1024
 # Name of the MCAP metadata record with the run's facts (e.g. 'scenario': path).
 METADATA_NAME = 'dual_arm_control'
+# Name of the MCAP metadata record that places a file in its recording: {'recording_id': hex
+# text, the same in every file of one recording; 'split_index': '0', '1', ...}.
+SPLIT_METADATA_NAME = 'dual_arm_control/split'
 COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}
 _CDR_LITTLE_ENDIAN_IDS = (0x01, 0x03)
@@ -99,6 +106,15 @@ def split_path(path, index):
     return path.with_name(f'{path.stem}_{index}{path.suffix}')
 
 
+def existing_bag_files(path):
+    """Return the files of a bag at path that exist: path and any <stem>_<N><suffix> beside it."""
+    path = Path(path)
+    pattern = re.compile(rf'{re.escape(path.stem)}_\d+{re.escape(path.suffix)}')
+    siblings = (sorted(p for p in path.parent.iterdir() if pattern.fullmatch(p.name))
+                if path.parent.is_dir() else [])
+    return ([path] if path.exists() else []) + siblings
+
+
 class _Topic:
     """What a registered topic needs in every file: type, definition, QoS text, counts."""
 
@@ -115,15 +131,17 @@ class BagWriter:
     """
     Write serialized messages of registered topics into an MCAP bag (one or more files).
 
-    log_time is the receive time [ns] (kept non-decreasing per file), publish_time the
-    message's header stamp when its type starts with std_msgs/Header, else the log time.
-    split_size [bytes] or split_duration [s] start a new file <stem>_<N>.mcap once exceeded.
-    metadata {key: text} goes into every file as the MCAP metadata record METADATA_NAME (e.g.
-    the run's scenario file, so tools that read the bag can rebuild the scene).
+    log_time is the receive time [ns] on the recorder's clock, wall or sim time (kept
+    non-decreasing per file), publish_time the message's header stamp when its type starts
+    with std_msgs/Header, else the log time. split_size [bytes] or split_duration [s] start a
+    new file <stem>_<N>.mcap once exceeded; split() starts one at once. metadata {key: text}
+    goes into every file as the MCAP metadata record METADATA_NAME (e.g. the run's scenario
+    file, so tools that read the bag can rebuild the scene). An existing bag at path (the file
+    or its split files) is refused unless overwrite, which deletes all of them first.
     """
 
     def __init__(self, path, compression='zstd', chunk_size=DEFAULT_CHUNK_SIZE, split_size=None,
-                 split_duration=None, metadata=None):
+                 split_duration=None, metadata=None, overwrite=False):
         if compression not in available_compressions():
             raise BagError(f'compression {compression!r} is not available; choose one of '
                            f'{available_compressions()}')
@@ -133,6 +151,17 @@ class BagWriter:
             if value is not None and value <= 0:
                 raise BagError(f'{name} must be positive, got {value}')
         self.path = Path(path)
+        existing = existing_bag_files(self.path)
+        if existing and not overwrite:
+            raise BagError(f'{self.path}: a bag is already there '
+                           f'({", ".join(p.name for p in existing)}); refusing to replace it '
+                           'without overwrite (bag_record --overwrite)')
+        for stale in existing:
+            try:
+                stale.unlink()
+            except OSError as error:
+                raise BagError(f'cannot replace {stale}: {error}') from error
+        self.recording_id = uuid.uuid4().hex
         self.compression = compression
         self._chunk_size = int(chunk_size)
         self._split_size = split_size
@@ -195,6 +224,13 @@ class BagWriter:
                                  self._sequences[topic])
         entry.count += 1
 
+    def split(self):
+        """Close the current file with its summary and continue in the next split file."""
+        if self._writer is None:
+            raise BagError(f'bag {self.path} is closed')
+        self._finish_file()
+        self._open_next_file()
+
     def close(self):
         """Write the summary and close the current file (idempotent)."""
         if self._writer is not None:
@@ -214,13 +250,15 @@ class BagWriter:
         path = split_path(self.path, len(self.paths))
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = open(path, 'wb')
+            self._file = open(path, 'xb')
         except OSError as error:
             raise BagError(f'cannot create bag file {path}: {error}') from error
         self.paths.append(path)
         self._writer = Writer(self._file, chunk_size=self._chunk_size,
                               compression=COMPRESSIONS[self.compression])
         self._writer.start(profile=PROFILE, library='dual_arm_control')
+        self._writer.add_metadata(SPLIT_METADATA_NAME, {
+            'recording_id': self.recording_id, 'split_index': str(len(self.paths) - 1)})
         if self.metadata:
             self._writer.add_metadata(METADATA_NAME, self.metadata)
         self._schemas = {}

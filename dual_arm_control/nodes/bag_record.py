@@ -7,7 +7,9 @@ contract QoS (so the subscriptions exist before the graph starts: a bridge start
 wait_for_recorder waits for them); other topics as their publishers appear (the graph
 is polled every 0.5 s), with a QoS compatible with every publisher: reliable and transient
 local only if each publisher offers it. SIGINT/SIGTERM first take what was already delivered,
-then close the bag with its summary.
+then close the bag with its summary. Log times are the receive time on the node's clock: sim
+time with use_sim_time (--use-sim-time or the ROS parameter), as rosbag2 records, else wall
+time. An existing bag is replaced only with --overwrite.
 """
 
 import argparse
@@ -19,9 +21,12 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from dual_arm_control import contract
 from dual_arm_control.bags import BagError
-from dual_arm_control.bags.writer import available_compressions, BagWriter, DEFAULT_CHUNK_SIZE
+from dual_arm_control.bags.writer import (available_compressions, BagWriter, DEFAULT_CHUNK_SIZE,
+                                          existing_bag_files)
 from dual_arm_control.nodes.process import run_node
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 
@@ -32,6 +37,10 @@ DEFAULT_EXTRA_TOPICS = ('/parameter_events', '/rosout')
 # On stop: take delivered messages until none came for DRAIN_IDLE, at most DRAIN_LIMIT [s].
 DRAIN_IDLE = 0.5
 DRAIN_LIMIT = 10.0
+EXIT_CODES = ('exit codes: 0 the bag was closed with its summary; 1 recording failed (the '
+              'traceback names the error); 2 bad input: an unknown option or topic expression, '
+              'a bag already at --output without --overwrite, a bag file that cannot be '
+              'created')
 
 
 def contract_topics():
@@ -94,27 +103,33 @@ class BagRecorder(Node):
     """Subscribe to the selected topics with raw=True and write every message to a BagWriter."""
 
     def __init__(self, options):
-        super().__init__('bag_record')
+        super().__init__('bag_record', parameter_overrides=(
+            [Parameter('use_sim_time', Parameter.Type.BOOL, True)] if options.use_sim_time
+            else []))
+        self._sim_time = self.get_parameter('use_sim_time').value
         self._selection = TopicSelection(options.topics, options.regex)
         self._writer = BagWriter(options.output, compression=options.compression,
                                  chunk_size=options.chunk_size,
                                  split_size=options.max_bag_size,
                                  split_duration=options.max_bag_duration,
-                                 metadata=dict(options.metadata))
+                                 metadata=dict(options.metadata), overwrite=options.overwrite)
         self._recorded = {}
         self._contract = contract_topics()
         for name, topic in self._contract.items():
             if self._selection.wants(name):
                 self._subscribe(name, topic.msg_type, [topic.publisher_qos], topic.qos)
         self._discover()
-        self.create_timer(DISCOVERY_PERIOD, self._discover)
+        # Wall-clock timers: sim time stands still until the graph runs, which waits for us.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DISCOVERY_PERIOD, self._discover, clock=steady)
         self._status_pub = self.create_publisher(
             contract.RECORDER_STATUS.msg_type, contract.RECORDER_STATUS.name,
             contract.RECORDER_STATUS.qos)
         self._matched = None
-        self.create_timer(STATUS_PERIOD, self._publish_matched)
+        self.create_timer(STATUS_PERIOD, self._publish_matched, clock=steady)
         self.get_logger().info(f'recording {len(self._recorded)} topics into '
-                               f'{options.output} ({options.compression})')
+                               f'{options.output} ({options.compression}, '
+                               f'{"sim" if self._sim_time else "wall"} time)')
 
     @property
     def counts(self):
@@ -130,8 +145,9 @@ class BagRecorder(Node):
             msg_type, name, lambda data, topic=name: self._record(topic, data), qos, raw=True)
 
     def _record(self, topic, data):
-        """Write one received message with its receive time."""
-        self._writer.write(topic, data, time.time_ns())
+        """Write one received message with its receive time (sim time with use_sim_time)."""
+        self._writer.write(topic, data, self.get_clock().now().nanoseconds if self._sim_time
+                           else time.time_ns())
 
     def _discover(self):
         """Subscribe to selected topics that appeared in the graph since the last poll."""
@@ -198,10 +214,16 @@ def _metadata_entry(text):
 
 def parse_arguments(argv):
     """Parse the recorder's command line (ROS arguments removed)."""
-    parser = argparse.ArgumentParser(prog='bag_record', description=__doc__.split('\n')[1])
+    parser = argparse.ArgumentParser(prog='bag_record', description=__doc__.split('\n')[1],
+                                     epilog=EXIT_CODES)
     parser.add_argument('topics', nargs='*', help='topics to record (default: the contract '
                         'topics, /parameter_events and /rosout)')
     parser.add_argument('-o', '--output', default='bag.mcap', help='bag file (.mcap)')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace a bag already at --output (with its split files)')
+    parser.add_argument('--use-sim-time', action='store_true',
+                        help='log times from /clock (sim time), as the ROS parameter '
+                             'use_sim_time:=true')
     parser.add_argument('-e', '--regex', help='record every topic matching this expression')
     parser.add_argument('--compression', default='zstd', choices=available_compressions())
     parser.add_argument('--chunk-size', type=int, default=DEFAULT_CHUNK_SIZE,
@@ -226,6 +248,12 @@ def main(argv=None):
     """Run the recorder until SIGINT/SIGTERM; return the process exit code."""
     argv = sys.argv if argv is None else argv
     options = parse_arguments(remove_ros_args(argv)[1:])
+    existing = existing_bag_files(options.output)
+    if existing and not options.overwrite:
+        print(f'bag_record: {options.output} already exists '
+              f'({", ".join(str(p) for p in existing)}); pass --overwrite to replace it',
+              file=sys.stderr)
+        return 2
     return run_node(lambda: BagRecorder(options), 'bag_record', args=argv, drain=True)
 
 

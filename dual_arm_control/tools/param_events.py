@@ -6,9 +6,9 @@ it, its value, the event's stamp and the recorder's log time.
 """
 
 from dataclasses import dataclass
-from pathlib import Path
 
-from dual_arm_control.bags.writer import split_path
+from dual_arm_control.bags import BagError
+from dual_arm_control.bags.reader import bag_files
 from dual_arm_control.core.exceptions import InputError
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
@@ -32,11 +32,11 @@ class ParameterChange:
 
 
 def _bag_files(bag_path):
-    """Return the files of a bag: the path, then its split files <stem>_<N>.mcap."""
-    paths = [Path(bag_path)]
-    while split_path(bag_path, len(paths)).exists():
-        paths.append(split_path(bag_path, len(paths)))
-    return paths
+    """Return the files of a bag (bags/reader.py bag_files); InputError naming the problem."""
+    try:
+        return bag_files(bag_path)
+    except BagError as error:
+        raise InputError(str(error)) from None
 
 
 def _event_changes(event, log_time_ns):
