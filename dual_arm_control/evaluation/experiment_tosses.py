@@ -33,10 +33,9 @@ from dual_arm_control.scenario import load_scenario, ReleaseConfig, scenario_pat
 from dual_arm_control.trajectory_log import load_trajectory
 import numpy as np
 
-# Experiment 2: the tosses (release at paper_toss's release position) and the workspace model.
-TOSS_SPEEDS = (0.6, 0.75, 0.9, 1.05)
-TOSS_ELEVATIONS_DEG = (15.0, 30.0, 45.0)
-TOSS_HEADINGS_DEG = (-30.0, -15.0, 0.0, 15.0, 30.0)
+# Experiment 2: tosses planned for landing targets over a wide grid, and the workspace model.
+WORKSPACE_TARGET_X = (0.75, 0.85, 0.95, 1.05, 1.15)
+WORKSPACE_TARGET_Y = (-0.45, -0.30, -0.15, 0.0, 0.15, 0.30, 0.45)
 WORKSPACE_SAMPLES = 2000000
 WORKSPACE_SEED = 7
 WORKSPACE_GRID = workspace.Grid(x0=0.0, y0=-1.0, cell=0.025, nx=56, ny=80)
@@ -110,19 +109,6 @@ def run_fast_toss(out_dir, limit=None, timeout=600.0):
     return results
 
 
-def toss_release_velocities(limit=None):
-    """Return [(speed [m/s], elevation [deg], heading [deg], velocity (3,))] of experiment 2."""
-    tosses = []
-    for speed in TOSS_SPEEDS:
-        for elevation in TOSS_ELEVATIONS_DEG:
-            for heading in TOSS_HEADINGS_DEG:
-                e, h = math.radians(elevation), math.radians(heading)
-                velocity = speed * np.array([math.cos(e) * math.cos(h),
-                                             math.cos(e) * math.sin(h), math.sin(e)])
-                tosses.append((speed, elevation, heading, velocity))
-    return tosses[:limit]
-
-
 def _flight(data, result, object_height, cell):
     """Return the object's path (N, 3) from release to landing, every 10 ms."""
     t = data['t']
@@ -139,16 +125,21 @@ def run_toss_workspace(out_dir, limit=None):
     cell = load_cell()
     base = load_scenario('paper_toss', cell=cell)
     tosses, flights, landings = [], [], []
-    for speed, elevation, heading, velocity in toss_release_velocities(limit):
-        scenario = replace(base, release=ReleaseConfig(base.release.position, velocity),
-                           speeds=replace(base.speeds, toss=speed))
+    targets, _ = landing_targets(cell, base.object.size, WORKSPACE_TARGET_X, WORKSPACE_TARGET_Y,
+                                 MotionGeneratorConfig().release_planning)
+    for target in targets[:limit]:
+        scenario = replace(base, task='toss_to_target', release=None, landing_target=target)
+        toss = motion_config_for_scenario(scenario, cell).toss
+        direction = np.asarray(toss.release_direction)
         result, data = run_inprocess_episode(scenario, cell)
         landing = result['landing_position']
         valid = (result['t_grasp'] is not None and result['t_release'] is not None
                  and landing is not None and cell.front_table.covers(*landing[:2]))
-        tosses.append({'speed': speed, 'elevation_deg': elevation, 'heading_deg': heading,
-                       'release_velocity_desired': velocity.tolist(), 'valid': valid,
-                       'success': result['success'], 'landing_position': landing,
+        tosses.append({'target': target.tolist(), 'speed': toss.toss_speed,
+                       'elevation_deg': math.degrees(math.asin(direction[2])),
+                       'heading_deg': math.degrees(math.atan2(direction[1], direction[0])),
+                       'release_position_planned': list(toss.release_position),
+                       'valid': valid, 'success': result['success'], 'landing_position': landing,
                        'release_position': result['release_position'],
                        'release_velocity': result['release_velocity'],
                        'release_position_error': result['release_position_error'],
@@ -171,9 +162,9 @@ def run_toss_workspace(out_dir, limit=None):
     added, extension = workspace.extension_percent(joint, toss_mask)
     xs, ys = grid.centres()
     centre_row = joint[:, int(np.argmin(np.abs(ys)))]
-    release = base.release.position
+    release = np.asarray(MotionGeneratorConfig().toss.release_position)
     drop = release[2] - centre_landing_height(cell.front_table.top_height, base.object.size[2])
-    speeds = sorted({toss[0] for toss in toss_release_velocities(limit)})
+    speeds = sorted(toss['speed'] for toss in tosses) or [0.0]
     plots.figure8_top_view(grid, joint, toss_mask, added, hull, np.array(landings), cell,
                            Path(out_dir) / 'fig8_top_view.png')
     plots.figure8_trajectories(flights, reachable, cell, Path(out_dir) / 'fig8_trajectories.png',
@@ -183,7 +174,8 @@ def run_toss_workspace(out_dir, limit=None):
     results.update({
         'tosses': tosses, 'toss_count': len(tosses), 'valid_count': len(landings),
         'success_count': sum(1 for toss in tosses if toss['success']),
-        'release_position': base.release.position.tolist(),
+        'release_position': release.tolist(),
+        'target_grid': {'x': list(WORKSPACE_TARGET_X), 'y': list(WORKSPACE_TARGET_Y)},
         'method': {'samples_per_arm': samples, 'seed': WORKSPACE_SEED,
                    'kept_samples': {arm: len(reachable[arm]) for arm in ARMS},
                    'pad_max_tilt_deg': PAD_MAX_TILT_DEG, 'z_band': list(WORKSPACE_Z_BAND),

@@ -119,16 +119,16 @@ def workspace_section(results, link_root):
     if ws is None:
         return out + [not_run('toss_workspace')]
     method = ws['method']
-    speeds = sorted({toss['speed'] for toss in ws['tosses']})
-    elevations = sorted({toss['elevation_deg'] for toss in ws['tosses']})
-    headings = sorted({toss['heading_deg'] for toss in ws['tosses']})
+    speeds = [toss['speed'] for toss in ws['tosses']] or [0.0]
+    grid = ws.get('target_grid', {'x': [], 'y': []})
     out += [
-        f'Runner: {ws["runner"]}. {ws["toss_count"]} tosses of paper_toss from the release '
-        f'position {ws["release_position"]} m with release speeds {speeds} m/s, elevations '
-        f'{elevations} deg and headings {headings} deg (every combination); '
+        f'Runner: {ws["runner"]}. {ws["toss_count"]} tosses of the paper cube, each planned by '
+        f'the release planner for a landing target of the grid x {grid["x"]} x y {grid["y"]} m '
+        f'on the front table (targets it refuses are left out): release point, direction and '
+        f'speed ({min(speeds):.2f}-{max(speeds):.2f} m/s) chosen per target; '
         f'{ws["valid_count"]} were grasped, released and landed on the front table (their '
         f'measured landings are used), {ws["success_count"]} also met every episode '
-        f'criterion (release velocity within 10 %, landing within 5 cm of prediction).',
+        f'criterion.',
         '',
         'Method. Joint reachable space: for each arm '
         f'{method["samples_per_arm"]} joint configurations sampled uniformly within the limits '
@@ -146,13 +146,12 @@ def workspace_section(results, link_root):
         f'the landings on the same grid. Extension = hull cells outside the joint space / '
         f'joint space.',
         '',
-        f'Why the extension is small: the farthest landing is '
-        f'{number(ws["farthest_landing"], 3, unit="m")} from the release point horizontally; '
-        f'no drag-free toss at {ws["fastest_toss"]:g} m/s released at that height can land '
-        f'farther than {number(ws["longest_toss"], 3, unit="m")}, while the joint reachable '
-        f'space already reaches x = {number(ws["joint_max_x_at_y0"], 3, unit="m")} at y = 0, '
-        f'{number(ws["joint_max_x_at_y0"] - ws["release_position"][0], 3, unit="m")} beyond '
-        f'the release point. The release speed is capped by the tool speed limit (1.1 m/s).',
+        f'Reach of the toss: the farthest landing is '
+        f'{number(ws["farthest_landing"], 3, unit="m")} from the nominal release point '
+        f'horizontally; a drag-free toss at {ws["fastest_toss"]:.2f} m/s released at that '
+        f'height lands at most {number(ws["longest_toss"], 3, unit="m")} away, while the joint '
+        f'reachable space already reaches x = {number(ws["joint_max_x_at_y0"], 3, unit="m")} '
+        f'at y = 0. The planner caps the release speed (release_planning.max_release_speed).',
         '',
         table(('quantity', 'ours', 'paper'), [
             ('tosses (valid landings)', f'{ws["toss_count"]} ({ws["valid_count"]})',
