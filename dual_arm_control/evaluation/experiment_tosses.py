@@ -29,7 +29,7 @@ from dual_arm_control.evaluation.experiment_runs import (ExperimentError, result
                                                          run_inprocess_episode, write_results)
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
-from dual_arm_control.scenario import load_scenario, ReleaseConfig, scenario_path
+from dual_arm_control.scenario import load_scenario, scenario_path
 from dual_arm_control.trajectory_log import load_trajectory
 import numpy as np
 
