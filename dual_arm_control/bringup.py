@@ -360,27 +360,9 @@ def supervise(args, launcher):
         time.sleep(POLL_PERIOD)
 
 
-SUMMARY_FIELDS = (('contact_time_gap', 'contact gap', 1e3, 'ms'),
-                  ('impact_speed_left', 'impact left', 1.0, 'm/s'),
-                  ('impact_speed_right', 'impact right', 1.0, 'm/s'),
-                  ('max_slip', 'slip', 1e3, 'mm'),
-                  ('release_position_error', 'release error', 1e3, 'mm'),
-                  ('release_velocity_error', 'release speed error', 100.0, '%'),
-                  ('landing_error', 'landing error', 1e3, 'mm'),
-                  ('place_position_error', 'place error', 1e3, 'mm'),
-                  ('cycle_time', 'cycle time', 1.0, 's'))
-
-
-def metrics_summary(metrics):
-    """Return one line per key metric of an episode (all of them are in metrics.json)."""
-    lines = [f'  {label}: {metrics[key] * scale:.3g} {unit}'
-             for key, label, scale, unit in SUMMARY_FIELDS if metrics.get(key) is not None]
-    return '\n'.join(['dual_arm_bringup: metrics (all in metrics.json)'] + lines)
-
-
 def _write_results(args):
     """Compute metrics and plots from the bridge's ground-truth log; return the exit code."""
-    from dual_arm_control.evaluation.episode import evaluate_episode
+    from dual_arm_control.evaluation.episode import evaluate_episode, metrics_summary
     try:
         metrics = evaluate_episode(args.scenario, args.out / 'trajectory.npz', args.out,
                                    graph=args.graph)
@@ -388,6 +370,7 @@ def _write_results(args):
         print(f'dual_arm_bringup: cannot evaluate the episode: {error}', file=sys.stderr)
         return EXIT_NODE_FAILED
     (args.out / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+    print('dual_arm_bringup: metrics (all in metrics.json)')
     print(metrics_summary(metrics))
     if metrics.get('success'):
         print('dual_arm_bringup: episode succeeded')

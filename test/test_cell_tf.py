@@ -63,6 +63,9 @@ def test_late_subscriber_gets_description_and_tf_matching_the_twin(tmp_path, ros
                 use_sim_time=True))
             for arm in contract.ARMS:
                 group.start_controller(arm)
+            # /tf is volatile: the publisher must know the probe before the 1 s episode runs.
+            assert probe.spin_until(lambda: node.count_publishers(contract.TF.name), TIMEOUT), \
+                group.log('cell_state_publisher')
             group.start_bridge(scenario=SCENARIO, duration=DURATION, ground_truth_period=0.0,
                                wait_for_nodes=['/cell_state_publisher', '/object_tracker',
                                                f'/{PROBE}'])
@@ -105,10 +108,10 @@ def test_late_subscriber_gets_description_and_tf_matching_the_twin(tmp_path, ros
             chain.append(parents[chain[-1]])
             assert len(chain) < 30, chain
 
-    arm_stamps = {stamp for child, stamp in dynamic if child == 'left_link_1'}
-    compared = 0
+    compared = dict.fromkeys(contract.ARMS, 0)
     for arm in contract.ARMS:
         tool = f'{arm}_tool'
+        arm_stamps = {stamp for child, stamp in dynamic if child == f'{arm}_link_1'}
         for stamp in sorted(arm_stamps):
             if (tool, stamp) not in received['truth'] or \
                     (f'{arm}_link_7', stamp) not in dynamic:
@@ -118,6 +121,7 @@ def test_late_subscriber_gets_description_and_tf_matching_the_twin(tmp_path, ros
             assert np.linalg.norm(pose[:3, 3] - vector3(truth.position)) < PAD_TOLERANCE
             R_error = pose[:3, :3].T @ quat_xyzw_to_matrix(quaternion(truth.orientation))
             assert np.arccos(np.clip((np.trace(R_error) - 1) / 2, -1, 1)) < ROTATION_TOLERANCE
-            compared += 1
-    # 1 s of sim time at 50 Hz per arm: about 50 stamps each.
-    assert compared >= 80, compared
+            compared[arm] += 1
+    # 1 s of sim time at 50 Hz: about 50 TF stamps per arm (measured 50-51); a few may go
+    # before the probe's subscriptions to ground truth match.
+    assert min(compared.values()) >= 40, compared

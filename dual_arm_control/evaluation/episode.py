@@ -234,3 +234,21 @@ def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full'):
     plots.plot_object_motion(shifted, events, out_dir / 'object_motion.png')
     plots.plot_trajectories_3d(shifted, out_dir / 'trajectories_3d.png')
     return result
+
+
+SUMMARY_FIELDS = (('contact_time_gap', 'contact gap', 1e3, 'ms'),
+                  ('impact_speed_left', 'impact left', 1.0, 'm/s'),
+                  ('impact_speed_right', 'impact right', 1.0, 'm/s'),
+                  ('max_slip', 'slip', 1e3, 'mm'),
+                  ('release_position_error', 'release error', 1e3, 'mm'),
+                  ('release_velocity_error', 'release speed error', 100.0, '%'),
+                  ('landing_error', 'landing error', 1e3, 'mm'),
+                  ('place_position_error', 'place error', 1e3, 'mm'),
+                  ('cycle_time', 'cycle time', 1.0, 's'))
+
+
+def metrics_summary(metrics):
+    """Return one line per key metric of an episode (all of them are in metrics.json)."""
+    return '\n'.join(f'  {label}: {metrics[key] * scale:.3g} {unit}'
+                     for key, label, scale, unit in SUMMARY_FIELDS
+                     if metrics.get(key) is not None)
