@@ -193,25 +193,26 @@ def test_a_pad_touching_alone_stops_pushing_into_its_face():
     assert both is commands
 
 
-def test_the_arm_that_would_touch_first_waits_for_the_other():
+def test_the_arm_that_would_touch_last_catches_up_with_the_other():
     from dual_arm_control.core.approach import synchronised_arrival
     normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
     velocity = np.array([[0.1, -0.4, 0.0], [0.1, 0.4, 0.0]])
-    # Left 4 cm from its face, right 8 cm: at equal closing speeds left would touch in half
-    # the time, so it gets half the speed, and both touch together.
-    slowed = synchronised_arrival(velocity, [0.04, 0.08], normals, horizon=0.25)
-    np.testing.assert_allclose(slowed[0], 0.5 * velocity[0])
-    np.testing.assert_array_equal(slowed[1], velocity[1])
-    times = np.array([0.04, 0.08]) / np.einsum('ij,ij->i', slowed, normals)
+    # Left 5 cm from its face, right 5.5 cm, both within the inner half of the horizon: at
+    # equal closing speeds right would touch 10 % later, so it gets 10 % more speed.
+    faster = synchronised_arrival(velocity, [0.05, 0.055], normals, horizon=0.25)
+    np.testing.assert_array_equal(faster[0], velocity[0])
+    np.testing.assert_allclose(faster[1], 1.1 * velocity[1])
+    times = np.array([0.05, 0.055]) / np.einsum('ij,ij->i', faster, normals)
     assert times[0] == pytest.approx(times[1])
     # Far from the faces, or already in step, nothing changes.
     np.testing.assert_array_equal(synchronised_arrival(velocity, [0.30, 0.40], normals, 0.25),
                                   velocity)
     np.testing.assert_array_equal(synchronised_arrival(velocity, [0.05, 0.05], normals, 0.25),
                                   velocity)
-    # Never slower than the floor.
-    floor = synchronised_arrival(velocity, [0.001, 0.1], normals, 0.25, slowest=0.3)
-    np.testing.assert_allclose(floor[0], 0.3 * velocity[0])
+    # Never faster than the cap.
+    capped = synchronised_arrival(velocity, [0.001, 0.1], normals, 0.25, fastest=1.2)
+    np.testing.assert_allclose(capped[1], 1.2 * velocity[1])
+    np.testing.assert_array_equal(capped[0], velocity[0])
 
 
 def test_null_space_posture_follows_a_reachable_solution_within_limits(cell):
