@@ -197,7 +197,9 @@ def place_vs_toss_section(results, link_root):
         f'{settings["place_scenario"]}` (place at '
         f'{[round(x, 3) for x in settings["place_target"]]} m on the front table) with reach '
         f'and carrying speed v, grabbing at {settings["place_impact_speed"]:g} m/s as the '
-        f"paper's near-zero-speed baseline; the toss grabs at {settings['impact_speed']:g} m/s. "
+        f"paper's near-zero-speed baseline (slowing from v to it between "
+        f'{settings["place_slowdown"][1]:g} and {settings["place_slowdown"][0]:g} m from '
+        f"the faces); the toss grabs at {settings['impact_speed']:g} m/s. "
         f'{pvt["repeats"]} runs per task and speed (sensor-noise seeds); mean ± std.',
         '',
         'Definitions (episode_metrics, identical for both tasks): cycle time = from the '
