@@ -84,6 +84,11 @@ def test_slip_is_measured_in_the_object_frame():
     slipping[:, 2] -= 0.02 * t
     slip = metrics.max_pad_slip(slipping, object_position, quats, 0, n)
     assert slip == pytest.approx(0.02 * t[-1], rel=1e-9)
+    # A pad settling 1 cm onto its face (along the face normal, object y) does not slide on it.
+    seating = tool - np.array([rotation_exp([0.0, 0.0, 1.5 * t[i]]) @ [0.0, 0.01 * t[i], 0.0]
+                               for i in range(n)])
+    assert metrics.max_pad_slip(seating, object_position, quats, 0, n) == \
+        pytest.approx(0.0, abs=1e-12)
 
 
 def test_landing_on_the_surface_below():

@@ -94,10 +94,13 @@ def grasp_and_release_indices(t, left_contact, right_contact, criteria=EventCrit
 
 def max_pad_slip(tool_position, object_position, object_quat_xyzw, begin, end):
     """
-    Return the largest displacement [m] of a pad relative to the object between begin and end.
+    Return the largest slip [m] of a pad along its face between begin and end.
 
-    The pad (tool centre) position is expressed in the object frame; slip is its distance from
-    where it was at begin.
+    The pad (tool centre) position is expressed in the object frame; slip is its displacement
+    from where it was at begin, less the part along the face normal (the object axis the pad
+    sits on at begin). That part is the pad seating and pressing on the face, not sliding: at
+    a grasp the pads first touch tilted and then settle flat, the tool centres 1 cm closer to
+    the box centre (pick_and_lift on the twin).
     """
     if begin is None or end is None or end <= begin:
         return None
@@ -110,7 +113,9 @@ def max_pad_slip(tool_position, object_position, object_quat_xyzw, begin, end):
         p_object_tool = rotation.T @ (tool_position[index] - object_position[index])
         if reference is None:
             reference = p_object_tool
-        largest = max(largest, float(np.linalg.norm(p_object_tool - reference)))
+            along_face = np.ones(3)
+            along_face[int(np.argmax(np.abs(reference)))] = 0.0
+        largest = max(largest, float(np.linalg.norm((p_object_tool - reference) * along_face)))
     return largest
 
 
