@@ -1,10 +1,10 @@
 """
-The ROS launch file and the launcher start the same graph.
+The ROS launch file and the launcher start the same graph, and that graph runs.
 
 launch/launch_ros are not installable from pip, so this test loads the launch file with small
 recording stand-ins for those two modules (only the launch API is replaced; the node table,
-parameters and config paths are the product's own) and compares what it would start with the
-launcher's command lines.
+parameters and config paths are the product's own), compares what it would start with the
+launcher's command lines, and starts the nodes it describes as real processes.
 """
 
 import importlib.util
@@ -14,7 +14,11 @@ import types
 from conftest import SOURCE_ROOT
 from dual_arm_control.bringup import node_command, ros_value
 from dual_arm_control.graph import GRAPHS, run_parameters
+from dual_arm_control.nodes.ds_motion_generator import PHASE_LOG_PREFIX
+from graph_helpers import parameter_arguments, ProcessGroup
 import pytest
+
+EPISODE_TIMEOUT = 120.0         # [s] of wall time for 2 s of lockstep sim time on 2 loaded cores
 
 
 class _Recorded:
@@ -108,3 +112,35 @@ def test_a_users_parameter_file_has_the_last_word(tmp_path):
     assert 'duration:=' not in bridge and 'mode:=lockstep' in bridge
     assert bridge.endswith(f'--params-file {user_file}')
     assert 'use_sim_time:=' not in ' '.join(commands['left_passive_controller'])
+
+
+def test_the_nodes_the_launch_file_describes_run_an_episode(monkeypatch, tmp_path, ros_domain):
+    """Start each Node action as `ros2 run` would (name, namespace, files, values), lockstep."""
+    module = _load_launch_file(monkeypatch)
+    user_file = tmp_path / 'short.yaml'
+    user_file.write_text('sim_bridge:\n  ros__parameters:\n    duration: 2.0\n')
+    _LaunchConfiguration.values = {
+        'graph': 'full', 'mode': 'lockstep', 'params_file': str(user_file),
+        'scenario': str(SOURCE_ROOT / 'config' / 'scenarios' / 'paper_toss.yaml')}
+    with ProcessGroup(tmp_path, ros_domain) as group:
+        labels = []
+        for action in module.graph_nodes(context=None):
+            node = action.kwargs
+            arguments = ['-r', f'__node:={node["name"]}']
+            if node['namespace']:
+                arguments += ['-r', f'__ns:=/{node["namespace"].strip("/")}']
+            for parameters in node['parameters']:
+                if isinstance(parameters, str):
+                    arguments += ['--params-file', parameters]
+                else:
+                    arguments += parameter_arguments(**parameters)
+            label = f'{node["namespace"] or ""}{node["name"]}'.strip('/').replace('/', '_')
+            group.start(label, node['executable'], arguments)
+            labels.append(label)
+        assert group.wait('sim_bridge', EPISODE_TIMEOUT) == 0, group.log('sim_bridge')
+        for label in labels:
+            assert label == 'sim_bridge' or group.poll(label) is None, group.log(label)
+        phases = [line for line in group.log('ds_motion_generator').splitlines()
+                  if PHASE_LOG_PREFIX in line]
+    assert any('contact' in line for line in phases), phases
+    assert any('manipulate' in line for line in phases), phases

@@ -247,6 +247,20 @@ class BagReader:
             if name in self.topics:
                 self.topics[name].count += info.count
 
+    def metadata(self, name):
+        """Return the first metadata record called name ({key: value}) of the bag, or None."""
+        for file in self._files:
+            if file.summary.status != 'complete':
+                continue
+            try:
+                with open(file.path, 'rb') as stream:
+                    for record in make_reader(stream).iter_metadata():
+                        if record.name == name:
+                            return dict(record.metadata)
+            except _READ_ERRORS as error:
+                raise BagError(f'{file.path}: cannot read metadata: {error}') from error
+        return None
+
     def messages(self, topics=None, start_ns=None, end_ns=None):
         """
         Yield BagMessages of the given topics (default all) with start_ns <= log time < end_ns.

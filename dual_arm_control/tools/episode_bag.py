@@ -10,12 +10,10 @@ from dataclasses import dataclass, field
 
 from dual_arm_control import contract
 from dual_arm_control.bags import BagError
-from dual_arm_control.bags.reader import bag_files
+from dual_arm_control.bags.reader import BagReader
 from dual_arm_control.bags.writer import METADATA_NAME
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.nodes.bag_record import message_class
-from mcap.exceptions import McapError
-from mcap.reader import make_reader
 import numpy as np
 from rclpy.serialization import deserialize_message
 
@@ -122,43 +120,28 @@ def _stamp(msg):
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
 
-def _bag_files(path):
-    """Return the files of a (possibly split) bag or rosbag2 folder; InputError if none."""
+def _read_bag(path, topics):
+    """
+    Return ([(topic, message, log_time_ns)], scenario or None) of a bag (bags/reader.py).
+
+    The scenario is the one its METADATA_NAME record names. InputError if it cannot be read.
+    """
     try:
-        return bag_files(path)
-    except BagError as error:
-        raise InputError(str(error)) from None
+        reader = BagReader(path)
+        recorded = reader.metadata(METADATA_NAME) or {}
+        return list(_messages(reader, topics)), recorded.get('scenario') or None
+    except (BagError, ValueError, EOFError) as error:
+        raise InputError(f'bag {path} cannot be read: {error}') from None
 
 
-def _recorded_scenario(files):
-    """Return the scenario named in the bag's METADATA_NAME metadata record, or None."""
-    for path in files:
-        try:
-            with open(path, 'rb') as stream:
-                for record in make_reader(stream).iter_metadata():
-                    if record.name == METADATA_NAME and record.metadata.get('scenario'):
-                        return record.metadata['scenario']
-        except (McapError, OSError, ValueError, EOFError):
-            return None
-    return None
-
-
-def _messages(files, topics):
-    """Yield (topic, message, log_time_ns) of the given topics, in log-time order per file."""
+def _messages(reader, topics):
+    """Yield (topic, message, log_time_ns) of a BagReader's topics, in log-time order."""
     classes = {}
-    for path in files:
-        try:
-            with open(path, 'rb') as stream:
-                for schema, channel, message in make_reader(stream).iter_messages(
-                        topics=topics, log_time_order=True):
-                    if schema is None:
-                        continue
-                    if schema.name not in classes:
-                        classes[schema.name] = message_class(schema.name)
-                    yield (channel.topic, deserialize_message(message.data, classes[schema.name]),
-                           message.log_time)
-        except (McapError, OSError, ValueError, EOFError) as error:
-            raise InputError(f'bag {path} cannot be read: {error}') from None
+    for message in reader.messages(topics):
+        if message.type_name not in classes:
+            classes[message.type_name] = message_class(message.type_name)
+        yield (message.topic, deserialize_message(message.data, classes[message.type_name]),
+               message.log_time)
 
 
 def _scenario_from_parameter_event(msg):
@@ -178,7 +161,6 @@ def read_episode(path):
     (<stem>_1.mcap, ...) are read as one. Returns an EpisodeRecord. Raises InputError naming
     the file and the problem (missing file, unreadable bag, no joint states of an arm).
     """
-    files = _bag_files(path)
     joint_topics = {contract.JOINT_STATES.resolved(arm): arm for arm in contract.ARMS}
     object_topics = (contract.GROUND_TRUTH_OBJECT.name, contract.OBJECT_STATE.name)
     topics = (list(joint_topics) + list(object_topics)
@@ -187,7 +169,8 @@ def read_episode(path):
     objects = {topic: [] for topic in object_topics}
     phases = []
     scenario_parameter = None
-    for topic, msg, log_time in _messages(files, topics):
+    messages, recorded_scenario = _read_bag(path, topics)
+    for topic, msg, log_time in messages:
         if topic in joint_topics:
             arm = joint_topics[topic]
             joints[arm].append(_joint_sample(topic, msg, arm, log_time))
@@ -226,7 +209,7 @@ def read_episode(path):
         joint_velocity[arm] = velocity
     record = {'joint_time': joint_time, 'joint_position': joint_position,
               'joint_velocity': joint_velocity,
-              'scenario': _recorded_scenario(files) or scenario_parameter}
+              'scenario': recorded_scenario or scenario_parameter}
     source = next((topic for topic in object_topics if objects[topic]), None)
     if source is not None:
         samples = objects[source]

@@ -8,10 +8,8 @@ it, its value, the event's stamp and the recorder's log time.
 from dataclasses import dataclass
 
 from dual_arm_control.bags import BagError
-from dual_arm_control.bags.reader import bag_files
+from dual_arm_control.bags.reader import BagReader
 from dual_arm_control.core.exceptions import InputError
-from mcap.exceptions import McapError
-from mcap.reader import make_reader
 from rcl_interfaces.msg import ParameterEvent
 from rclpy.parameter import parameter_value_to_python
 from rclpy.serialization import deserialize_message
@@ -29,14 +27,6 @@ class ParameterChange:
     name: str
     value: object
     kind: str
-
-
-def _bag_files(bag_path):
-    """Return the files of a bag (bags/reader.py bag_files); InputError naming the problem."""
-    try:
-        return bag_files(bag_path)
-    except BagError as error:
-        raise InputError(str(error)) from None
 
 
 def _event_changes(event, log_time_ns):
@@ -57,15 +47,12 @@ def parameter_changes(bag_path):
     stamp_ns is the event's stamp (the node's clock), log_time_ns the recorder's. Split files
     (<stem>_<N>.mcap) of the bag are read too.
     """
+    try:
+        messages = list(BagReader(bag_path).messages([PARAMETER_EVENTS_TOPIC]))
+    except BagError as error:
+        raise InputError(f'{bag_path}: cannot read bag: {error}') from None
     changes = []
-    for path in _bag_files(bag_path):
-        try:
-            with open(path, 'rb') as stream:
-                messages = [message for _, _, message in make_reader(stream).iter_messages(
-                    topics=[PARAMETER_EVENTS_TOPIC])]
-        except (OSError, McapError) as error:
-            raise InputError(f'{path}: cannot read bag: {error}') from None
-        for message in messages:
-            changes += _event_changes(deserialize_message(message.data, ParameterEvent),
-                                      message.log_time)
+    for message in messages:
+        changes += _event_changes(deserialize_message(message.data, ParameterEvent),
+                                  message.log_time)
     return sorted(changes, key=lambda change: change.log_time_ns)
