@@ -17,7 +17,10 @@ from pathlib import Path
 from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.impact import ImpactConfig
+from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.robot_model import ArmModel, JOINTS_PER_ARM
+from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.core.validation import check_range, frozen_vector
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.randomization import (Randomization, randomization_document,
@@ -75,18 +78,26 @@ class ReleaseConfig:
                            frozen_vector('release.velocity', self.velocity, 3, 'm/s'))
 
 
+# Each task speed configures one core setting, whose default and range it takes.
+_SPEED_SETTINGS = {'reach': (SpeedProfileConfig, 'reach_speed'),
+                   'impact': (ImpactConfig, 'impact_speed'),
+                   'toss': (TossConfig, 'toss_speed')}
+
+
 @dataclass(frozen=True)
 class Speeds:
     """Task speeds [m/s]: reach (approach), impact (at contact) and toss (at release)."""
 
-    reach: float = 0.85
-    impact: float = 0.5
-    toss: float = 0.85
+    reach: float = SpeedProfileConfig.reach_speed
+    impact: float = ImpactConfig.impact_speed
+    toss: float = TossConfig.toss_speed
 
     def __post_init__(self):
-        for item in fields(self):
-            check_range(f'speeds.{item.name}', getattr(self, item.name), 0.0, 3.0, 'm/s',
-                        low_open=True)
+        for name, (config_class, setting) in _SPEED_SETTINGS.items():
+            try:
+                config_class(**{setting: getattr(self, name)})
+            except ConfigError as error:
+                raise ConfigError(str(error).replace(setting, f'speeds.{name}', 1)) from None
 
 
 @dataclass(frozen=True)

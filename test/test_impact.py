@@ -125,7 +125,8 @@ def test_desired_impact_velocity_is_speed_times_direction():
     geometry, impact = paper_geometry()
     directions = geometry.bases[:, :, 0]
     np.testing.assert_allclose(desired_impact_velocity(directions, 0.45), 0.45 * directions)
-    np.testing.assert_allclose(geometry.desired_velocity, 0.45 * directions.reshape(6))
+    np.testing.assert_allclose(geometry.desired_velocity,
+                               impact.impact_speed * directions.reshape(6))
 
 
 def test_eq_6_attractor_limits():
@@ -227,7 +228,8 @@ def test_proposition_2_reach_hits_both_contacts_together(boosted, synchronise):
           f'contact point {position * 1e3:.2f} mm, speed {speed * 100:.2f} %, '
           f'direction {angle:.2f} deg')
     assert gap < 0.005
-    assert position < 0.003
+    # The residual off the line to the grasp point grows with the speed: 3.5 mm at 0.5 m/s.
+    assert position < 0.008 * impact.impact_speed
     assert speed < 0.02
     assert angle < 2.0
 
@@ -246,8 +248,9 @@ def test_arm_pushed_off_its_line_mid_run_still_arrives_with_the_other():
     A 1 cm lateral push 0.1 m before contact is only partly undone by contact (exp(-1)).
 
     With the 2 cm wide normal region (sized for the torque-controlled arms' tracking error)
-    the lateral residual r stays below 6 mm; it moves the face-plane crossing by up to
-    r |n . e_lateral| / (v n . e1), about 10 ms at 6 mm, hence the bounds; progress along e1
+    the lateral residual r stays below 7 mm at 0.5 m/s (it grows with the speed); it moves the
+    face-plane crossing by up to r |n . e_lateral| / (v n . e1), about 10 ms at 6 mm, hence
+    the bounds; progress along e1
     itself stays synchronised (previous test). The residual also tilts the arrival direction:
     up to 4 deg after a push (2 deg without pushes, Proposition 2 test).
     """
@@ -258,7 +261,7 @@ def test_arm_pushed_off_its_line_mid_run_still_arrives_with_the_other():
         print(f'left arm pushed by {push} m mid-run: gap {gap * 1e3:.2f} ms, contact point '
               f'{position * 1e3:.2f} mm, speed {speed * 100:.2f} %, direction {angle:.2f} deg')
         assert gap < 0.010
-        assert position < 0.006
+        assert position < 0.014 * impact.impact_speed
         assert speed < 0.02
         assert angle < 4.0
 

@@ -3,6 +3,9 @@
 import math
 
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.impact import ImpactConfig
+from dual_arm_control.core.manipulation import TossConfig
+from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.scenario import load_scenario, ObjectConfig, Scenario, Speeds
 from dual_arm_control.sensor_models import MocapConfig
@@ -171,3 +174,18 @@ def test_dataclasses_validate_on_their_own():
     with pytest.raises(ConfigError, match='needs place'):
         Scenario('s', 0, 'pick_and_place', box, Speeds(), 1.0,
                  {'left': np.zeros(7), 'right': np.zeros(7)})
+
+
+@pytest.mark.parametrize('name, config_class, setting', [
+    ('reach', SpeedProfileConfig, 'reach_speed'), ('impact', ImpactConfig, 'impact_speed'),
+    ('toss', TossConfig, 'toss_speed')])
+def test_task_speeds_have_the_core_settings_defaults_and_ranges(name, config_class, setting):
+    assert getattr(Speeds(), name) == getattr(config_class(), setting)
+    for value in (0.0, -0.1, 2.5, 3.5, math.inf):
+        try:
+            config_class(**{setting: value})
+        except ConfigError:
+            with pytest.raises(ConfigError, match=f'speeds.{name}'):
+                Speeds(**{name: value})
+        else:
+            assert getattr(Speeds(**{name: value}), name) == value

@@ -30,7 +30,7 @@ class ImpactConfig:
     Desired impact and its modulation region.
 
     impact_speed: speed of each pad along its impact direction at contact [m/s], in (0, 2].
-        Default 0.45 m/s, the reference's desVimp (paper: about 0.5 m/s).
+        Default 0.5 m/s, the paper's impact speed (section IV-A).
     max_tilt_deg: largest tilt of the impact direction away from the contact normal toward the
         object's desired motion [deg], in [0, 89]. Default 40 (reference max_friction_angle).
     synchronise: True keeps the attraction of the relative coordinate along e1 while the
@@ -49,7 +49,7 @@ class ImpactConfig:
     region: modulation region around each grasp point.
     """
 
-    impact_speed: float = 0.45
+    impact_speed: float = 0.5
     max_tilt_deg: float = 40.0
     synchronise: bool = True
     pad_half_height: float = 0.05
