@@ -721,6 +721,26 @@ def test_truncated_and_garbage_files_give_one_line_errors(graph_bag, tmp_path, c
     assert script.stderr.startswith('bag_info: ')
 
 
+def test_a_flipped_byte_anywhere_in_the_data_is_reported_as_damage(graph_bag, tmp_path):
+    """
+    Damage inside a compressed chunk fails the CRC or the decompressor: both are reported.
+
+    The file is cut in half (no summary), so its records are scanned and every chunk is
+    decompressed.
+    """
+    bag, _, _ = graph_bag
+    data = bag.read_bytes()[:bag.stat().st_size // 2]
+    path = tmp_path / 'flipped.mcap'
+    for offset in range(160, 1200, 7):
+        damaged = bytearray(data)
+        damaged[offset] ^= 0xFF
+        path.write_bytes(bytes(damaged))
+        summary = inspect_bag(path)
+        assert summary.status in ('corrupt', 'torn'), (offset, summary.status)
+        assert 'damaged' in summary.problem or 'ends inside' in summary.problem, \
+            summary.problem
+
+
 def test_bringup_record_flag_writes_a_complete_bag(tmp_path):
     """
     `dual_arm_bringup --record` leaves OUT/bag.mcap, complete, with every phase of the run.

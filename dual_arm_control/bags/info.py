@@ -213,7 +213,11 @@ def _decode(scan, opcode, content):
         scan.add(Message.read(stream, len(content)))
     elif opcode == Opcode.CHUNK:
         chunk = Chunk.read(stream)
-        records = breakup_chunk(chunk, validate_crc=True)
+        try:
+            records = breakup_chunk(chunk, validate_crc=True)
+        except Exception as error:  # zstandard and lz4 raise their own error types
+            raise BagError(f'its {chunk.compression or "uncompressed"} data does not '
+                           f'decompress: {error}') from error
         for record in records:
             scan.add(record)
         scan.summary.chunk_count += 1
