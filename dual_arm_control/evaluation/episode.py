@@ -10,12 +10,12 @@ from pathlib import Path
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.approach import (impact_directions, object_motion_direction,
                                             support_height_below)
-from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.graph import EPISODE_START_TIME
-from dual_arm_control.runtime.configuration import motion_config_for_scenario
+from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
+                                                    planned_release, predicted_landing)
 from dual_arm_control.scenario import load_scenario, PLACE_TASKS, TOSS_TASKS
 from dual_arm_control.trajectory_log import load_trajectory
 import numpy as np
@@ -66,37 +66,6 @@ def _contact_directions(scenario, cell):
     return ({arm: frames[arm].normal for arm in ARMS},
             impact_directions(config, frames, motion,
                               support_height_below(config, scenario.object.position)))
-
-
-def predicted_landing(p_release, v_release, object_height, cell):
-    """Return the drag-free landing point of the box centre on the surface below."""
-    landing = None
-    surface = cell.front_table.top_height
-    for _ in range(3):
-        landing = landing_without_drag(p_release, v_release, surface + 0.5 * object_height)
-        below = cell.surface_height(*landing.position[:2])
-        if below == surface:
-            break
-        surface = below
-    return landing.position
-
-
-def planned_release(scenario, cell):
-    """
-    Return the object's planned (position, velocity) at release [m, m/s], or None.
-
-    The scenario's release state, or for a landing target the one the motion generator plans
-    (release position of its toss config, velocity from the ballistic solution).
-    """
-    if scenario.release is not None:
-        return (np.asarray(scenario.release.position, dtype=float),
-                np.asarray(scenario.release.velocity, dtype=float))
-    if scenario.task not in TOSS_TASKS:
-        return None
-    toss = motion_config_for_scenario(scenario, cell).toss
-    direction = np.asarray(toss.release_direction, dtype=float)
-    return (np.asarray(toss.release_position, dtype=float),
-            toss.toss_speed * direction / np.linalg.norm(direction))
 
 
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):

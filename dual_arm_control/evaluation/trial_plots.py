@@ -9,10 +9,11 @@ import math
 from pathlib import Path
 
 from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, LANDING_LIMIT,
-                                                 predicted_landing, RELEASE_POSITION_LIMIT,
-                                                 RELEASE_VELOCITY_LIMIT, SLIP_LIMIT)
+                                                 RELEASE_POSITION_LIMIT, RELEASE_VELOCITY_LIMIT,
+                                                 SLIP_LIMIT)
 from dual_arm_control.evaluation.plots import save_figure
 from dual_arm_control.evaluation.trial_summary import succeeded
+from dual_arm_control.runtime.configuration import predicted_landing
 from dual_arm_control.scenario import TOSS_TASKS
 import matplotlib
 matplotlib.use('Agg')

@@ -12,11 +12,10 @@ from dataclasses import dataclass
 import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control.core.arms import ARMS, joint_names
-from dual_arm_control.core.ballistics import centre_landing_height, landing_without_drag
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp, rpy_to_matrix
 from dual_arm_control.description.cell_urdf import WORLD_LINK
-from dual_arm_control.runtime.configuration import motion_config_for_scenario
+from dual_arm_control.runtime.configuration import planned_release, predicted_landing
 from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
 import numpy as np
 
@@ -110,17 +109,14 @@ def target_transforms(scenario, cell):
     target. The motion generator starts from the same targets (live tuning may move them).
     """
     transforms = []
-    if scenario.task in TOSS_TASKS:
-        toss = motion_config_for_scenario(scenario, cell).toss
-        release = np.asarray(toss.release_position, dtype=float)
-        direction = np.asarray(toss.release_direction, dtype=float)
-        velocity = toss.toss_speed * direction / np.linalg.norm(direction)
-        transforms.append(FrameTransform(WORLD_LINK, RELEASE_FRAME, release, IDENTITY))
+    release = planned_release(scenario, cell) if scenario.task in TOSS_TASKS else None
+    if release is not None:
+        transforms.append(FrameTransform(WORLD_LINK, RELEASE_FRAME, release[0], IDENTITY))
         if scenario.landing_target is not None:
             landing = np.asarray(scenario.landing_target, dtype=float)
         else:
             try:
-                landing = _landing(release, velocity, cell, scenario.object.size[2])
+                landing = predicted_landing(*release, scenario.object.size[2], cell)
             except InputError:
                 landing = None
         if landing is not None:
@@ -129,18 +125,6 @@ def target_transforms(scenario, cell):
         transforms.append(FrameTransform(WORLD_LINK, PLACE_FRAME,
                                          np.asarray(scenario.place, dtype=float), IDENTITY))
     return transforms
-
-
-def _landing(release, velocity, cell, object_height):
-    """Return where the box centre lands from release, on the surface it comes down to."""
-    surface = cell.front_table.top_height
-    landing = landing_without_drag(release, velocity,
-                                   centre_landing_height(surface, object_height))
-    height = cell.surface_height(*landing.position[:2])
-    if height != surface:
-        landing = landing_without_drag(release, velocity,
-                                       centre_landing_height(height, object_height))
-    return landing.position
 
 
 class UpdateSchedule:

@@ -3,9 +3,11 @@
 from dataclasses import replace
 
 from dual_arm_control.core.arms import ARMS
-from dual_arm_control.core.manipulation import TossConfig
+from dual_arm_control.core.ballistics import centre_landing_height, landing_without_drag
+from dual_arm_control.core.manipulation import release_velocity, TossConfig
 from dual_arm_control.core.motion_generator import MotionGeneratorConfig
 from dual_arm_control.core.toss_planning import plan_release
+from dual_arm_control.scenario import TOSS_TASKS
 import numpy as np
 
 # The place DS aims this far below the box's resting pose [m], so the table, not the release,
@@ -52,3 +54,33 @@ def config_for_landing_target(config, target):
     return replace(config, toss=replace(config.toss, release_position=tuple(plan.position),
                                         release_direction=tuple(plan.velocity / speed),
                                         toss_speed=speed))
+
+
+def planned_release(scenario, cell):
+    """
+    Return the object's planned (position, velocity) at release [m, m/s], or None.
+
+    The scenario's release state, or for a landing target the one the motion generator plans
+    (release position of its toss config, velocity from the ballistic solution).
+    """
+    if scenario.release is not None:
+        return (np.asarray(scenario.release.position, dtype=float),
+                np.asarray(scenario.release.velocity, dtype=float))
+    if scenario.task not in TOSS_TASKS:
+        return None
+    toss = motion_config_for_scenario(scenario, cell).toss
+    return np.asarray(toss.release_position, dtype=float), release_velocity(toss)
+
+
+def predicted_landing(p_release, v_release, object_height, cell):
+    """Return the drag-free landing point of the box centre on the cell surface below it."""
+    landing = None
+    surface = cell.front_table.top_height
+    for _ in range(3):
+        landing = landing_without_drag(p_release, v_release,
+                                       centre_landing_height(surface, object_height))
+        below = cell.surface_height(*landing.position[:2])
+        if below == surface:
+            break
+        surface = below
+    return landing.position
