@@ -118,12 +118,11 @@ class MotionGeneratorStep:
         Return '' when the new release state is planned, else the reason it is refused (also
         counted as refusal 'landing_target').
         """
-        config = self._pending_config or self._generator.config
         if self._generator.phase in (Phase.RELEASE, Phase.RETRACT):
             reason = f'landing target {np.round(target, 3).tolist()} m came after the release'
         else:
             try:
-                self._pending_config = config_for_landing_target(config, target)
+                self._pending_config = config_for_landing_target(self.pending_config, target)
                 self._landing_target = np.array(target, dtype=float)
                 return ''
             except (UnreachableTargetError, InputError) as error:
