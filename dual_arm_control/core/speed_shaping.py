@@ -102,6 +102,12 @@ def saturated_velocity(velocity, max_speed):
     return velocity * np.minimum(1.0, max_speed / np.maximum(norm, _MIN_SPEED))
 
 
+def _check_step(dt):
+    """Raise InputError unless the time step dt [s] is finite and >= 0."""
+    if not (math.isfinite(dt) and dt >= 0.0):
+        raise InputError(f'dt must be finite and >= 0 s, got {dt!r}')
+
+
 class SpeedFilter:
     """
     First-order low-pass of a speed [m/s]: ds/dt = (target - s) / time_constant.
@@ -122,8 +128,7 @@ class SpeedFilter:
 
     def update(self, target_speed, dt):
         """Advance by dt [s] toward target_speed [m/s]; return the filtered speed."""
-        if not (math.isfinite(dt) and dt >= 0.0):
-            raise InputError(f'dt must be finite and >= 0 s, got {dt!r}')
+        _check_step(dt)
         self.speed += (1.0 - math.exp(-dt / self.time_constant)) * (target_speed - self.speed)
         return self.speed
 
@@ -151,8 +156,7 @@ class SpeedErrorIntegrator:
 
     def update(self, desired, measured, dt):
         """Return the corrected velocity (3,) [m/s] after integrating the shortfall over dt [s]."""
-        if not (math.isfinite(dt) and dt >= 0.0):
-            raise InputError(f'dt must be finite and >= 0 s, got {dt!r}')
+        _check_step(dt)
         desired = np.asarray(desired, dtype=float)
         speed = math.sqrt(desired @ desired)
         if speed <= _MIN_SPEED:
