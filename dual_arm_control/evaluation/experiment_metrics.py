@@ -11,7 +11,7 @@ from dual_arm_control.core.ballistics import (centre_landing_height, STANDARD_GR
                                               UnreachableTargetError)
 from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.toss_planning import plan_release
-from dual_arm_control.evaluation.metrics import mechanical_energy
+from dual_arm_control.evaluation.metrics import joint_power, mechanical_energy, time_integral
 import numpy as np
 
 
@@ -24,14 +24,12 @@ def reduction_percent(baseline, proposed):
 
 def signed_work(t, tau, dq):
     """Return the integral of tau . dq dt [J]: the paper's mechanical energy, recovery counted."""
-    power = np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq))
-    return float(np.trapezoid(power, np.asarray(t))) if len(power) > 1 else 0.0
+    return time_integral(t, joint_power(tau, dq))
 
 
 def positive_work(t, tau, dq):
     """Return the integral of max(tau . dq, 0) dt [J]: work the drives supply, none recovered."""
-    power = np.maximum(np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq)), 0.0)
-    return float(np.trapezoid(power, np.asarray(t))) if len(power) > 1 else 0.0
+    return time_integral(t, np.maximum(joint_power(tau, dq), 0.0))
 
 
 def energy_without_gravity(t, tau, dq, gravity_torque):
@@ -47,7 +45,7 @@ def energy_without_gravity(t, tau, dq, gravity_torque):
 
 def cumulative_energy(t, tau, dq):
     """Return the running integral of |tau . dq| [J] at every sample (trapezoidal rule)."""
-    power = np.abs(np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq)))
+    power = np.abs(joint_power(tau, dq))
     steps = 0.5 * (power[1:] + power[:-1]) * np.diff(np.asarray(t))
     return np.concatenate(([0.0], np.cumsum(steps)))
 

@@ -36,10 +36,19 @@ class EventCriteria:
         check_range('home_tolerance', self.home_tolerance, 0.0, 0.5, 'm')
 
 
+def joint_power(tau, dq):
+    """Return the mechanical power tau . dq [W] of the drives at every sample (N,)."""
+    return np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq))
+
+
+def time_integral(t, values):
+    """Return the integral of values over t (trapezoidal rule); 0 for fewer than two samples."""
+    return float(np.trapezoid(values, np.asarray(t))) if len(values) > 1 else 0.0
+
+
 def mechanical_energy(t, tau, dq):
     """Return the time integral of |tau . dq| [J] over the log (trapezoidal rule)."""
-    power = np.abs(np.einsum('ij,ij->i', np.asarray(tau), np.asarray(dq)))
-    return float(np.trapezoid(power, np.asarray(t))) if len(power) > 1 else 0.0
+    return time_integral(t, np.abs(joint_power(tau, dq)))
 
 
 def first_true_index(flags, start=0):
