@@ -109,6 +109,20 @@ def run_fast_toss(out_dir, limit=None, timeout=600.0):
     return results
 
 
+def _toss_for_target(base, target, cell):
+    """
+    Return (scenario, planned TossConfig, elevation [deg], heading [deg]) of base tossed to target.
+
+    The scenario is base as toss_to_target with that landing target; the TossConfig is the
+    release state the motion generator plans for it.
+    """
+    scenario = replace(base, task='toss_to_target', release=None, landing_target=target)
+    toss = motion_config_for_scenario(scenario, cell).toss
+    direction = np.asarray(toss.release_direction)
+    return (scenario, toss, math.degrees(math.asin(direction[2])),
+            math.degrees(math.atan2(direction[1], direction[0])))
+
+
 def _flight(data, result, object_height, cell):
     """Return the object's path (N, 3) from release to landing, every 10 ms."""
     t = data['t']
@@ -128,16 +142,13 @@ def run_toss_workspace(out_dir, limit=None):
     targets, _ = landing_targets(cell, base.object.size, WORKSPACE_TARGET_X, WORKSPACE_TARGET_Y,
                                  MotionGeneratorConfig().release_planning)
     for target in targets[:limit]:
-        scenario = replace(base, task='toss_to_target', release=None, landing_target=target)
-        toss = motion_config_for_scenario(scenario, cell).toss
-        direction = np.asarray(toss.release_direction)
+        scenario, toss, elevation, heading = _toss_for_target(base, target, cell)
         result, data = run_inprocess_episode(scenario, cell)
         landing = result['landing_position']
         valid = (result['t_grasp'] is not None and result['t_release'] is not None
                  and landing is not None and cell.front_table.covers(*landing[:2]))
         tosses.append({'target': target.tolist(), 'speed': toss.toss_speed,
-                       'elevation_deg': math.degrees(math.asin(direction[2])),
-                       'heading_deg': math.degrees(math.atan2(direction[1], direction[0])),
+                       'elevation_deg': elevation, 'heading_deg': heading,
                        'release_position_planned': list(toss.release_position),
                        'valid': valid, 'success': result['success'], 'landing_position': landing,
                        'release_position': result['release_position'],
@@ -214,15 +225,13 @@ def run_toss_to_target(out_dir, limit=None):
     targets, refused = landing_targets(cell, base.object.size, TARGET_X, TARGET_Y, planning)
     rows = []
     for target in targets[:limit]:
-        scenario = replace(base, task='toss_to_target', release=None, landing_target=target)
+        scenario, toss, elevation, _ = _toss_for_target(base, target, cell)
         result, _ = run_inprocess_episode(scenario, cell)
-        toss = motion_config_for_scenario(scenario, cell).toss
-        direction = np.asarray(toss.release_direction)
         error = result['landing_error']
         rows.append({
             'target': target.tolist(), 'release_position_planned': list(toss.release_position),
             'release_speed_planned': toss.toss_speed,
-            'release_elevation_deg': math.degrees(math.asin(direction[2])),
+            'release_elevation_deg': elevation,
             'landing_position': result['landing_position'], 'landing_error': error,
             'landing_offset': None if result['landing_position'] is None else
             (np.asarray(result['landing_position'][:2]) - target[:2]).tolist(),
