@@ -18,7 +18,8 @@ import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rpy_to_matrix
+from dual_arm_control.core.geometry import matrix_to_quat_xyzw
+from dual_arm_control.description.cell_urdf import urdf_origin, urdf_vector
 import mujoco
 import numpy as np
 
@@ -78,21 +79,9 @@ class SceneIndex:
     object_dof: int
 
 
-def _floats(text, default='0 0 0'):
-    return np.array([float(v) for v in (text or default).split()])
-
-
 def _wxyz(rotation):
     x, y, z, w = matrix_to_quat_xyzw(rotation)
     return [w, x, y, z]
-
-
-def _origin(element):
-    """Return (p, R) of an URDF <origin> child of element (identity if absent)."""
-    origin = element.find('origin') if element is not None else None
-    if origin is None:
-        return np.zeros(3), np.eye(3)
-    return _floats(origin.get('xyz')), rpy_to_matrix(_floats(origin.get('rpy')))
 
 
 class _UrdfArm:
@@ -127,7 +116,7 @@ class _UrdfArm:
 
 def _add_inertial(body, link):
     inertial = link.find('inertial')
-    position, rotation = _origin(inertial)
+    position, rotation = urdf_origin(inertial)
     element = inertial.find('inertia')
     values = {key: float(element.get(key, '0')) for key in
               ('ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz')}
@@ -145,7 +134,7 @@ def _add_inertial(body, link):
 
 def _add_geoms(body, link, prefix, p_body_link, R_body_link):
     for index, collision in enumerate(link.findall('collision')):
-        position, rotation = _origin(collision)
+        position, rotation = urdf_origin(collision)
         geometry = collision.find('geometry')
         shape = geometry[0]
         name = collision.get('name') or f'{link.get("name")}_{index}'
@@ -154,7 +143,7 @@ def _add_geoms(body, link, prefix, p_body_link, R_body_link):
         geom.quat = _wxyz(R_body_link @ rotation)
         if shape.tag == 'box':
             geom.type = mujoco.mjtGeom.mjGEOM_BOX
-            geom.size = 0.5 * _floats(shape.get('size'))
+            geom.size = 0.5 * urdf_vector(shape.get('size'))
         elif shape.tag == 'cylinder':
             geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
             geom.size = [float(shape.get('radius')), 0.5 * float(shape.get('length')), 0.0]
@@ -187,7 +176,7 @@ def _add_link(spec, urdf, link_name, body, prefix, p_body_link, R_body_link, dri
     _add_geoms(body, link, prefix, p_body_link, R_body_link)
     for joint in urdf.children.get(link_name, []):
         child = joint.find('child').get('link')
-        position, rotation = _origin(joint)
+        position, rotation = urdf_origin(joint)
         p_body_child = p_body_link + R_body_link @ position
         R_body_child = R_body_link @ rotation
         kind = joint.get('type')
@@ -214,7 +203,7 @@ def _add_revolute(spec, body, joint, prefix, drives):
     index = drives['names'].index(name)
     limit = joint.find('limit')
     hinge = body.add_joint(name=prefix + name, type=mujoco.mjtJoint.mjJNT_HINGE,
-                           axis=_floats(joint.find('axis').get('xyz')))
+                           axis=urdf_vector(joint.find('axis').get('xyz')))
     hinge.range = [float(limit.get('lower')), float(limit.get('upper'))]
     hinge.limited = mujoco.mjtLimited.mjLIMITED_TRUE
     hinge.armature = float(drives['armature'][index])

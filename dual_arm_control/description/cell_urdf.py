@@ -13,7 +13,7 @@ import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control.core.arms import ARMS, joint_names
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.geometry import matrix_to_rpy, quat_xyzw_to_matrix
+from dual_arm_control.core.geometry import matrix_to_rpy, quat_xyzw_to_matrix, rpy_to_matrix
 from dual_arm_control.description.cell import load_cell
 import numpy as np
 
@@ -30,6 +30,19 @@ def arm_frame(arm, link):
 def base_joint(arm):
     """Return the name of the fixed joint that places an arm's base in the world."""
     return arm_frame(arm, 'base_joint')
+
+
+def urdf_vector(text, default='0 0 0'):
+    """Return the numbers of a URDF attribute ('0.1 0 0.3') as an array; default if absent."""
+    return np.array([float(value) for value in (text or default).split()])
+
+
+def urdf_origin(element):
+    """Return (p (3,), R (3, 3)) of the <origin> child of a URDF element (identity if absent)."""
+    origin = element.find('origin') if element is not None else None
+    if origin is None:
+        return np.zeros(3), np.eye(3)
+    return urdf_vector(origin.get('xyz')), rpy_to_matrix(urdf_vector(origin.get('rpy')))
 
 
 def _origin(parent, position, rotation):

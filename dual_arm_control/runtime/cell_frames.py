@@ -13,8 +13,8 @@ import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control.core.arms import ARMS, joint_names
 from dual_arm_control.core.exceptions import ConfigError, InputError
-from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp, rpy_to_matrix
-from dual_arm_control.description.cell_urdf import WORLD_LINK
+from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
+from dual_arm_control.description.cell_urdf import urdf_origin, urdf_vector, WORLD_LINK
 from dual_arm_control.runtime.configuration import planned_release, predicted_landing
 from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
 import numpy as np
@@ -45,10 +45,6 @@ class _Revolute:
     axis: np.ndarray
 
 
-def _floats(text, default='0 0 0'):
-    return np.array([float(value) for value in (text or default).split()])
-
-
 class CellFrames:
     """The cell's joint tree, read once from its URDF text; transforms on request."""
 
@@ -60,9 +56,7 @@ class CellFrames:
         self.links = tuple(link.get('name') for link in robot.iter('link'))
         static, revolute = [], {}
         for joint in robot.iter('joint'):
-            origin = joint.find('origin')
-            translation = _floats(None if origin is None else origin.get('xyz'))
-            rotation = rpy_to_matrix(_floats(None if origin is None else origin.get('rpy')))
+            translation, rotation = urdf_origin(joint)
             parent = joint.find('parent').get('link')
             child = joint.find('child').get('link')
             kind = joint.get('type')
@@ -70,7 +64,7 @@ class CellFrames:
                 static.append(FrameTransform(parent, child, translation,
                                              matrix_to_quat_xyzw(rotation)))
             elif kind == 'revolute':
-                axis = _floats(joint.find('axis').get('xyz'))
+                axis = urdf_vector(joint.find('axis').get('xyz'))
                 revolute[joint.get('name')] = _Revolute(parent, child, translation, rotation,
                                                         axis / np.linalg.norm(axis))
             else:
