@@ -1,8 +1,10 @@
 """The parameter table is the one source: nodes declare it, config files and docs agree."""
 
+import dataclasses
 import math
 
 from conftest import SOURCE_ROOT
+from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.settings import Setting
 from dual_arm_control.graph import GRAPHS
 from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
@@ -13,8 +15,8 @@ from dual_arm_control.parameter_files import (BUILT_IN_PARAMETERS, key_applies,
                                               node_parameter_names, parameter_file_problems,
                                               parameter_reference)
 from dual_arm_control.resources import load_yaml
-from dual_arm_control.runtime.config_tree import config_leaves
-from dual_arm_control.runtime.node_settings import node_table
+from dual_arm_control.runtime.config_tree import config_leaves, config_with_values
+from dual_arm_control.runtime.node_settings import node_table, NODE_TABLES
 from graph_helpers import GraphProbe
 import pytest
 from rclpy.parameter import Parameter
@@ -105,3 +107,45 @@ def test_each_node_declares_exactly_its_table(ros_domain, executable):
         node.destroy_node()
     finally:
         probe.close()
+
+
+CONFIG_TABLES = {name: table for name, table in NODE_TABLES.items() if table.config is not None}
+
+
+def _outside(setting):
+    """Return values just outside the declared interval of a numeric setting."""
+    step = 1 if setting.kind is int else 1e-3 * max(1.0, abs(setting.high), abs(setting.low))
+    values = []
+    if math.isfinite(setting.high):
+        values.append(setting.high if setting.high_open else setting.high + step)
+    if math.isfinite(setting.low):
+        values.append(setting.low if setting.low_open else setting.low - step)
+    return values
+
+
+@pytest.mark.parametrize('node', sorted(CONFIG_TABLES))
+def test_config_validation_enforces_the_declared_ranges(node):
+    """Every declared range is the one the config enforces: a value just outside is refused."""
+    config = CONFIG_TABLES[node].config()
+    checked = 0
+    for leaf in config_leaves(config):
+        entry = leaf.setting
+        assert entry.description and entry.description != leaf.path[-1], leaf.name
+        assert entry.problem(leaf.default) is None, leaf.name
+        if entry.kind not in (int, float, list):
+            continue
+        for bad in _outside(entry):
+            value = [bad] * entry.length if entry.kind is list else bad
+            with pytest.raises(ConfigError, match=leaf.path[-1]):
+                config_with_values(config, {leaf.path: value})
+            checked += 1
+    assert checked >= 10
+
+
+def test_a_tunable_field_without_a_setting_is_refused():
+    @dataclasses.dataclass(frozen=True)
+    class BareConfig:
+        gain: float = 1.0
+
+    with pytest.raises(TypeError, match='BareConfig.gain'):
+        config_leaves(BareConfig())

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import cross3
-from dual_arm_control.core.validation import check_range, check_vector, finite_array
+from dual_arm_control.core.settings import check_settings, setting
+from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
 
 
@@ -56,40 +57,30 @@ class FirstOrderLowPass:
 
 @dataclass(frozen=True)
 class ContactConfig:
-    """
-    Thresholds of the per-arm contact detector.
+    """Thresholds of the per-arm contact detector."""
 
-    Fields:
-        force_threshold: N, > 0; filtered normal force above which the pad presses (ref. 2 N).
-        force_hysteresis: N, in [0, force_threshold); contact by force persists until the
-            filtered normal force drops below force_threshold - force_hysteresis.
-        force_time_constant: s, > 0; low-pass on the normal force (ref. per-cycle 0.9 at
-            200 Hz = 0.047 s).
-        contact_distance: m, > 0; |normal gap| between tool origin and face (ref. 0.055 m).
-        pad_size: (2,) m, > 0; pad extent along tool x and tool y (0.15 x 0.10 m).
-        tangential_margin: m, >= 0; the face's grasp point may lie this far outside the pad.
-
-    """
-
-    force_threshold: float = 2.0
-    force_hysteresis: float = 0.5
-    force_time_constant: float = 0.05
-    contact_distance: float = 0.055
-    pad_size: tuple = (0.15, 0.10)
-    tangential_margin: float = 0.02
+    force_threshold: float = setting(
+        2.0, 'Filtered normal force above which the pad presses (reference 2 N).',
+        unit='N', low=0, low_open=True)
+    force_hysteresis: float = setting(
+        0.5, 'Contact by force persists until the filtered normal force drops below '
+        'force_threshold - force_hysteresis; less than force_threshold.', unit='N', low=0)
+    force_time_constant: float = setting(
+        0.05, 'Low-pass on the normal force (reference: per-cycle 0.9 at 200 Hz = 0.047 s).',
+        unit='s', low=0, low_open=True)
+    contact_distance: float = setting(
+        0.055, '|normal gap| between tool origin and face below which the pad is at the face '
+        '(reference 0.055 m).', unit='m', low=0, low_open=True)
+    pad_size: tuple = setting(
+        (0.15, 0.10), 'Pad extent along tool x and tool y (0.15 x 0.10 m).',
+        unit='m', low=0, low_open=True, size=2)
+    tangential_margin: float = setting(
+        0.02, "The face's grasp point may lie this far outside the pad.", unit='m', low=0)
 
     def __post_init__(self):
-        check_range('force_threshold', self.force_threshold, 0.0, unit='N', low_open=True)
+        check_settings(self)
         check_range('force_hysteresis', self.force_hysteresis, 0.0, self.force_threshold,
                     unit='N', high_open=True)
-        check_range('force_time_constant', self.force_time_constant, 0.0, unit='s',
-                    low_open=True)
-        check_range('contact_distance', self.contact_distance, 0.0, unit='m', low_open=True)
-        pad = check_vector('pad_size', self.pad_size, 2, 'm')
-        for index, extent in enumerate(pad):
-            check_range(f'pad_size[{index}]', extent, 0.0, unit='m', low_open=True)
-        object.__setattr__(self, 'pad_size', tuple(float(e) for e in pad))
-        check_range('tangential_margin', self.tangential_margin, 0.0, unit='m')
 
 
 @dataclass(frozen=True)
@@ -191,30 +182,21 @@ class ContactDetector:
 
 @dataclass(frozen=True)
 class FtCompensationConfig:
-    """
-    Tool load and bias window of the FT compensation (the authors' setup).
+    """Tool load and bias window of the FT compensation (the authors' setup)."""
 
-    Fields:
-        tool_mass: kg, >= 0; mass below the sensor (0.2 kg).
-        p_sensor_tool_com: (3,) m; tool centre of mass in the sensor frame (0, 0, 0.035).
-        gravity_world: (3,) m/s^2; gravity in the world frame.
-        bias_duration: s, > 0; the bias is the time-weighted mean over the first bias_duration
-            seconds of weight-compensated readings (ref. 50 samples at 200 Hz = 0.25 s).
-
-    """
-
-    tool_mass: float = 0.2
-    p_sensor_tool_com: tuple = (0.0, 0.0, 0.035)
-    gravity_world: tuple = (0.0, 0.0, -9.81)
-    bias_duration: float = 0.25
+    tool_mass: float = setting(0.2, 'Mass below the sensor (0.2 kg).', unit='kg', low=0)
+    p_sensor_tool_com: tuple = setting(
+        (0.0, 0.0, 0.035), 'Tool centre of mass in the sensor frame (0, 0, 0.035).',
+        unit='m', size=3)
+    gravity_world: tuple = setting(
+        (0.0, 0.0, -9.81), 'Gravity in the world frame.', unit='m/s^2', size=3)
+    bias_duration: float = setting(
+        0.25, 'The bias is the time-weighted mean over the first bias_duration seconds of '
+        'weight-compensated readings (reference: 50 samples at 200 Hz = 0.25 s).',
+        unit='s', low=0, low_open=True)
 
     def __post_init__(self):
-        check_range('tool_mass', self.tool_mass, 0.0, unit='kg')
-        com = check_vector('p_sensor_tool_com', self.p_sensor_tool_com, 3, 'm')
-        gravity = check_vector('gravity_world', self.gravity_world, 3, 'm/s^2')
-        object.__setattr__(self, 'p_sensor_tool_com', tuple(float(v) for v in com))
-        object.__setattr__(self, 'gravity_world', tuple(float(v) for v in gravity))
-        check_range('bias_duration', self.bias_duration, 0.0, unit='s', low_open=True)
+        check_settings(self)
 
 
 def tool_weight_reading(R_world_sensor, config):

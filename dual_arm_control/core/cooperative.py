@@ -8,8 +8,7 @@ position x_rel = x_R - x_L. Every function accepts leading batch dimensions (...
 
 from dataclasses import dataclass
 
-from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
 _I3 = np.eye(3)
@@ -22,29 +21,25 @@ class CoordinationConfig:
     """
     Gain matrix A = diag(-absolute_gain I3, -relative_gain I3) of the coordinated DS (eq. 4).
 
-    One A serves every coordinated field (reach, impact, manipulation), unlike the reference
-    code, which used -4.5/-10 in its nominal DS but -6/-8 in the impact attractor.
-
-    absolute_gain: convergence rate of the absolute (midpoint) position [1/s], in (0, 100].
-        Default 4.5, the rate the reference's nominal DS applied (3 x 1.5).
-    relative_gain: convergence rate of the relative position x_R - x_L [1/s], in (0, 100].
-        Default 10, the reference's nominal relative rate (5 x 2). A relative rate above the
-        absolute one makes the arms agree with each other faster than they reach the target:
-        this is what synchronises them.
-    coordinated: True couples the arms through A' = T_b^-1 A T_b. False keeps only the
-        block-diagonal part of A' (paper section V): each arm converges to its own attractor
-        at the rate (absolute_gain + relative_gain) / 2, independently of the other arm.
+    One A serves every coordinated field (reach, impact, manipulation), unlike the reference code,
+    which used -4.5/-10 in its nominal DS but -6/-8 in the impact attractor.
     """
 
-    absolute_gain: float = 4.5
-    relative_gain: float = 10.0
-    coordinated: bool = True
+    absolute_gain: float = setting(
+        4.5, 'Convergence rate of the absolute (midpoint) position. Default 4.5, the rate the '
+        "reference's nominal DS applied (3 x 1.5).", unit='1/s', low=0, high=100.0, low_open=True)
+    relative_gain: float = setting(
+        10.0, "Convergence rate of the relative position x_R - x_L. Default 10, the reference's "
+        'nominal relative rate (5 x 2). A relative rate above the absolute one makes the arms '
+        'agree with each other faster than they reach the target: this is what synchronises '
+        'them.', unit='1/s', low=0, high=100.0, low_open=True)
+    coordinated: bool = setting(
+        True, "True couples the arms through A' = T_b^-1 A T_b. False keeps only the "
+        "block-diagonal part of A' (paper section V): each arm converges to its own attractor at "
+        'the rate (absolute_gain + relative_gain) / 2, independently of the other arm.')
 
     def __post_init__(self):
-        check_range('absolute_gain', self.absolute_gain, 0.0, 100.0, '1/s', low_open=True)
-        check_range('relative_gain', self.relative_gain, 0.0, 100.0, '1/s', low_open=True)
-        if not isinstance(self.coordinated, (bool, np.bool_)):
-            raise ConfigError(f'coordinated must be true or false, got {self.coordinated!r}')
+        check_settings(self)
 
 
 def cooperative_transform():

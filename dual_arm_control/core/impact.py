@@ -18,6 +18,7 @@ from dual_arm_control.core.geometry import unit
 from dual_arm_control.core.modulation import (
     activation_distances, activations, modulated_velocity, modulation_bases,
     ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
+from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
 
@@ -26,45 +27,36 @@ _PARALLEL_TOLERANCE = 1e-9
 
 @dataclass(frozen=True)
 class ImpactConfig:
-    """
-    Desired impact and its modulation region.
+    """Desired impact and its modulation region (region, around each grasp point)."""
 
-    impact_speed: speed of each pad along its impact direction at contact [m/s], in (0, 2].
-        Default 0.5 m/s, the paper's impact speed (section IV-A).
-    max_tilt_deg: largest tilt of the impact direction away from the contact normal toward the
-        object's desired motion [deg], in [0, 89]. Default 40 (reference max_friction_angle).
-    synchronise: True keeps the attraction of the relative coordinate along e1 while the
-        desired velocity is applied (see impact_target_field); False is eq. 6 as printed,
-        which switches that attraction off as gamma -> 1.
-    pad_half_height: half extent of a pad across the impact plane, i.e. how far below the
-        grasp point the pad reaches [m]. Default 0.05 (the 0.15 x 0.10 m pad).
-    support_clearance: the pad's lowest point stays this far above the surface the box rests
-        on while it runs in along e1 [m], see clearance_limited_direction. Default 0.02.
-    synchronisation_distance: within this distance of its grasp point [m] the arm behind
-        speeds up to arrive with the other (core.approach.synchronised_arrival); 0 disables
-        it. Default 0.1: the box's yaw otherwise delays one pad by about 0.9 ms per degree.
-        200 paper_toss_random trials in the twin, without -> with: contact-time gap p95 14 ->
-        10 ms, success 144 -> 175 (182 reachable), both impact speeds within 10 % of 0.5 m/s
-        in 180 of 182 grasps; at 0.2-0.25 m it made gaps worse (p95 14-18 ms).
-    region: modulation region around each grasp point.
-    """
-
-    impact_speed: float = 0.5
-    max_tilt_deg: float = 40.0
-    synchronise: bool = True
-    pad_half_height: float = 0.05
-    support_clearance: float = 0.02
-    synchronisation_distance: float = 0.1
+    impact_speed: float = setting(
+        0.5, 'Speed of each pad along its impact direction at contact. Default 0.5 m/s, the '
+        "paper's impact speed (section IV-A).", unit='m/s', low=0, high=2.0, low_open=True)
+    max_tilt_deg: float = setting(
+        40.0, 'Largest tilt of the impact direction away from the contact normal toward the '
+        "object's desired motion. Default 40 (reference max_friction_angle).",
+        unit='deg', low=0, high=89.0)
+    synchronise: bool = setting(
+        True, 'True keeps the attraction of the relative coordinate along e1 while the desired '
+        'velocity is applied (see impact_target_field); false is eq. 6 as printed, which '
+        'switches that attraction off as gamma -> 1.')
+    pad_half_height: float = setting(
+        0.05, 'Half extent of a pad across the impact plane, i.e. how far below the grasp point '
+        'the pad reaches. Default 0.05 (the 0.15 x 0.10 m pad).', unit='m', low=0, high=0.5)
+    support_clearance: float = setting(
+        0.02, "The pad's lowest point stays this far above the surface the box rests on while it "
+        'runs in along e1 (see clearance_limited_direction).', unit='m', low=0, high=0.5)
+    synchronisation_distance: float = setting(
+        0.1, 'Within this distance of its grasp point the arm behind speeds up to arrive with '
+        "the other (core.approach.synchronised_arrival); 0 disables it. Default 0.1: the box's "
+        'yaw otherwise delays one pad by about 0.9 ms per degree. 200 paper_toss_random trials '
+        'in the twin, without -> with: contact-time gap p95 14 -> 10 ms, success 144 -> 175 (182 '
+        'reachable), both impact speeds within 10 % of 0.5 m/s in 180 of 182 grasps; at 0.2-0.25 '
+        'm it made gaps worse (p95 14-18 ms).', unit='m', low=0, high=2.0)
     region: ModulationRegionConfig = ModulationRegionConfig()
 
     def __post_init__(self):
-        check_range('impact_speed', self.impact_speed, 0.0, 2.0, 'm/s', low_open=True)
-        check_range('max_tilt_deg', self.max_tilt_deg, 0.0, 89.0, 'deg')
-        check_range('pad_half_height', self.pad_half_height, 0.0, 0.5, 'm')
-        check_range('support_clearance', self.support_clearance, 0.0, 0.5, 'm')
-        check_range('synchronisation_distance', self.synchronisation_distance, 0.0, 2.0, 'm')
-        if not isinstance(self.synchronise, (bool, np.bool_)):
-            raise ConfigError(f'synchronise must be true or false, got {self.synchronise!r}')
+        check_settings(self)
         if not isinstance(self.region, ModulationRegionConfig):
             raise ConfigError(f'region must be a ModulationRegionConfig, got {self.region!r}')
 

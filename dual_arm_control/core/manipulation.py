@@ -15,6 +15,7 @@ from dual_arm_control.core.geometry import cross3, unit
 from dual_arm_control.core.modulation import (
     activation_distances, activations, modulated_velocity, modulation_bases,
     ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
+from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import saturated_velocity, speed_blend_weight
 from dual_arm_control.core.validation import check_range, check_vector, finite_array
 import numpy as np
@@ -29,94 +30,82 @@ class TossConfig:
     """
     Desired release state of the object and the modulation region of the toss DS.
 
-    release_position: x_r (3,) [m], world frame. Default (0.68, 0, 0.45): the reference's
-        release x with a height on the line through the paper's grasp pose (0.41, 0, 0.32)
-        along the release direction.
-    release_direction: direction of the release velocity (3,), normalised here.
-        Default (1, 0, 0.5), the reference's releaseLinVel_dir.
-    toss_speed: release speed [m/s], in (0, 3]. Default 0.85 (reference desVtoss).
-    region: modulation region around x_r. Defaults: x_t 0.14 m before the release (the
-        reference's 0.4 rho with rho = 0.35), delta_normal 0.04 m, delta_tangent 0.02 m and
-        a radial ball of 0.30 m around x_t, which keeps the field along e1 positive through the
-        release point and 0.1 m beyond.
-    lateral_gain: k_n [1/s], > 0; rate of the target fields along e2, e3 that bring the
-        object onto the release line (eq. 6 uses the DS gain k for them). The lateral
-        velocity left at release is k_n d for an offset d still uncorrected, and d decays as
-        exp(-k_n t): with k_n = 9 (twice k) a box that starts off the line is released ~0.3 deg
-        closer to the planned direction per mm of its initial offset. Default 9.
-    speed_integral_gain [1/s], speed_correction_limit: the outer loop on the carried
-        object's speed shortfall (SpeedErrorIntegrator), capped to speed_correction_limit times
-        the desired speed. 0 turns the loop off.
+    region: the modulation region around x_r. Defaults: x_t 0.14 m before the release (the
+    reference's 0.4 rho with rho = 0.35), delta_normal 0.04 m, delta_tangent 0.02 m and a radial
+    ball of 0.30 m around x_t, which keeps the field along e1 positive through the release point
+    and 0.1 m beyond.
     """
 
-    release_position: tuple = (0.68, 0.0, 0.45)
-    release_direction: tuple = (1.0, 0.0, 0.5)
-    toss_speed: float = 0.85
+    release_position: tuple = setting(
+        (0.68, 0.0, 0.45), "x_r, world frame. Default (0.68, 0, 0.45): the reference's release x "
+        "with a height on the line through the paper's grasp pose (0.41, 0, 0.32) along the "
+        'release direction.', unit='m', size=3)
+    release_direction: tuple = setting(
+        (1.0, 0.0, 0.5), 'Direction of the release velocity, normalised here. Default (1, 0, '
+        "0.5), the reference's releaseLinVel_dir.", size=3)
+    toss_speed: float = setting(
+        0.85, 'Release speed. Default 0.85 (reference desVtoss).',
+        unit='m/s', low=0, high=3.0, low_open=True)
     region: ModulationRegionConfig = _TOSS_REGION
-    lateral_gain: float = 9.0
-    speed_integral_gain: float = 20.0
-    speed_correction_limit: float = 0.25
+    lateral_gain: float = setting(
+        9.0, 'k_n, rate of the target fields along e2, e3 that bring the object onto the release '
+        'line (eq. 6 uses the DS gain k for them). The lateral velocity left at release is k_n d '
+        'for an offset d still uncorrected, and d decays as exp(-k_n t): with k_n = 9 (twice k) '
+        'a box that starts off the line is released ~0.3 deg closer to the planned direction per '
+        'mm of its initial offset.', unit='1/s', low=0, high=100.0, low_open=True)
+    speed_integral_gain: float = setting(
+        20.0, "Gain of the outer loop on the carried object's speed shortfall "
+        '(SpeedErrorIntegrator); 0 turns the loop off.', unit='1/s', low=0, high=200.0)
+    speed_correction_limit: float = setting(
+        0.25, "The speed loop's correction is capped to this fraction of the desired speed.",
+        low=0, high=1.0)
 
     def __post_init__(self):
-        check_vector('release_position', self.release_position, 3, 'm')
+        check_settings(self)
         direction = check_vector('release_direction', self.release_direction, 3)
         if np.linalg.norm(direction) < 1e-6:
             raise ConfigError(f'release_direction must be non-zero, got {direction.tolist()}')
-        check_range('toss_speed', self.toss_speed, 0.0, 3.0, 'm/s', low_open=True)
         if not isinstance(self.region, ModulationRegionConfig):
             raise ConfigError(f'region must be a ModulationRegionConfig, got {self.region!r}')
-        check_range('lateral_gain', self.lateral_gain, 0.0, 100.0, '1/s', low_open=True)
-        check_range('speed_integral_gain', self.speed_integral_gain, 0.0, 200.0, '1/s')
-        check_range('speed_correction_limit', self.speed_correction_limit, 0.0, 1.0)
 
 
 @dataclass(frozen=True)
 class LiftConfig:
-    """
-    Point attractor for the grasped object (pick and lift).
+    """Point attractor for the grasped object (pick and lift)."""
 
-    position: lift position (3,) [m], world frame. Default (0.45, 0, 0.45) (reference).
-    max_speed: speed cap of the object [m/s], in (0, 3]. Default 0.85.
-    """
-
-    position: tuple = (0.45, 0.0, 0.45)
-    max_speed: float = 0.85
+    position: tuple = setting(
+        (0.45, 0.0, 0.45), 'Lift position, world frame. Default (0.45, 0, 0.45) (reference).',
+        unit='m', size=3)
+    max_speed: float = setting(
+        0.85, 'Speed cap of the object.', unit='m/s', low=0, high=3.0, low_open=True)
 
     def __post_init__(self):
-        check_vector('position', self.position, 3, 'm')
-        check_range('max_speed', self.max_speed, 0.0, 3.0, 'm/s', low_open=True)
+        check_settings(self)
 
 
 @dataclass(frozen=True)
 class PlaceConfig:
-    """
-    Pick-and-place DS: approach the place from above, then descend and stop on it.
+    """Pick-and-place DS: approach the place from above, then descend and stop on it."""
 
-    position: place position of the object (3,) [m], world frame. Default (0.70, -0.12, 0.25)
-        (reference placing pose).
-    approach_height: height above the place at which the object travels [m], in (0, 1].
-        Default 0.05 (reference height_via_point).
-    descent_start_distance: horizontal distance to the place below which the descent begins
-        [m]. Default 0.10 (reference).
-    descent_end_distance: horizontal distance below which the target is the place itself [m],
-        < descent_start_distance. Default 0.02.
-    max_speed: speed cap of the object [m/s], in (0, 3]. Default 0.85.
-    """
-
-    position: tuple = (0.70, -0.12, 0.25)
-    approach_height: float = 0.05
-    descent_start_distance: float = 0.10
-    descent_end_distance: float = 0.02
-    max_speed: float = 0.85
+    position: tuple = setting(
+        (0.70, -0.12, 0.25), 'Place position of the object, world frame. Default (0.70, -0.12, '
+        '0.25) (reference placing pose).', unit='m', size=3)
+    approach_height: float = setting(
+        0.05, 'Height above the place at which the object travels. Default 0.05 (reference '
+        'height_via_point).', unit='m', low=0, high=1.0, low_open=True)
+    descent_start_distance: float = setting(
+        0.10, 'Horizontal distance to the place below which the descent begins. Default 0.10 '
+        '(reference).', unit='m', low=0, high=1.0, low_open=True)
+    descent_end_distance: float = setting(
+        0.02, 'Horizontal distance below which the target is the place itself; less than '
+        'descent_start_distance.', unit='m', low=0, high=1.0, high_open=True)
+    max_speed: float = setting(
+        0.85, 'Speed cap of the object.', unit='m/s', low=0, high=3.0, low_open=True)
 
     def __post_init__(self):
-        check_vector('position', self.position, 3, 'm')
-        check_range('approach_height', self.approach_height, 0.0, 1.0, 'm', low_open=True)
-        check_range('descent_start_distance', self.descent_start_distance, 0.0, 1.0, 'm',
-                    low_open=True)
+        check_settings(self)
         check_range('descent_end_distance', self.descent_end_distance, 0.0,
                     self.descent_start_distance, 'm', high_open=True)
-        check_range('max_speed', self.max_speed, 0.0, 3.0, 'm/s', low_open=True)
 
 
 class TossGeometry(NamedTuple):

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import orthonormal_basis
-from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
 _MIN_NOMINAL_SPEED_SQUARED = 1e-20
@@ -25,44 +25,43 @@ class ModulationRegionConfig:
     """
     Geometry of the region where the modulation acts around one target (section II, Fig. 3).
 
-    The defaults are those of the reach with impact. Off-line errors left when the desired
-    velocity switches on (about delta_normal) decay along the run as exp(-k rho / v) (k the
-    coordination rate, v the impact speed) and end up in the contact point and in the impact
-    direction; rho = 0.2 m and delta_normal = 0.01 m leave at most 1.5 mm and 0.8 deg at
-    0.45 m/s (test_impact); the reference's rho = 0.075 m, delta_normal = 0.05 m would leave
-    about 5 cm * exp(-4.5 * 0.075 / 0.45) = 2.4 cm.
-
-    transitory_distance: rho [m], the transitory attractor sits at x_t = x_d - rho e1; the
-        DS runs the last rho along e1 at the desired velocity. Default 0.2.
-    radial_distance: delta_radial [m], radius of the activation ball around x_t. Must exceed
-        rho with slope * (delta - rho) >= ln 99 so that phi_radial >= 0.99 at the target.
-        Default 0.25.
-    normal_distance: delta_normal [m], radius of the cylinder around the line through x_t
-        along e1 inside which the desired velocity is applied. Default 0.02: wide enough that
-        the torque-controlled arms (tracking within 1-2 cm at 0.5 m/s) enter the region
-        instead of dithering around x_t (measured in the MuJoCo twin).
-    tangent_distance: delta_tangent [m], half-length along e1 around the target x_d inside
-        which the contact activation kappa is on. Default 0.015 (reference).
-    radial_slope, normal_slope, tangent_slope: a_i [1/m] of the logistic activations.
-        Defaults 200, 400, 400 (the reference: 200, 300, 400 in this logistic's units).
+    The defaults are those of the reach with impact. Off-line errors left when the desired velocity
+    switches on (about delta_normal) decay along the run as exp(-k rho / v) (k the coordination
+    rate, v the impact speed) and end up in the contact point and in the impact direction; rho =
+    0.2 m and delta_normal = 0.01 m leave at most 1.5 mm and 0.8 deg at 0.45 m/s (test_impact); the
+    reference's rho = 0.075 m, delta_normal = 0.05 m would leave about 5 cm * exp(-4.5 * 0.075 /
+    0.45) = 2.4 cm.
     """
 
-    transitory_distance: float = 0.20
-    radial_distance: float = 0.25
-    normal_distance: float = 0.02
-    tangent_distance: float = 0.015
-    radial_slope: float = 200.0
-    normal_slope: float = 400.0
-    tangent_slope: float = 400.0
+    transitory_distance: float = setting(
+        0.20, 'rho: the transitory attractor sits at x_t = x_d - rho e1; the DS runs the last '
+        'rho along e1 at the desired velocity.', unit='m', low=0, high=1.0, low_open=True)
+    radial_distance: float = setting(
+        0.25, 'delta_radial, radius of the activation ball around x_t. Must exceed rho with '
+        'radial_slope * (delta_radial - rho) >= ln 99 so that phi_radial >= 0.99 at the target.',
+        unit='m', low=0, high=2.0, low_open=True)
+    normal_distance: float = setting(
+        0.02, 'delta_normal, radius of the cylinder around the line through x_t along e1 inside '
+        "which the desired velocity is applied. The reach's 0.02 m is wide enough that the "
+        'torque-controlled arms (tracking within 1-2 cm at 0.5 m/s) enter the region instead of '
+        'dithering around x_t (measured in the MuJoCo twin).',
+        unit='m', low=0, high=0.5, low_open=True)
+    tangent_distance: float = setting(
+        0.015, 'delta_tangent, half-length along e1 around the target x_d inside which the '
+        "contact activation kappa is on (the reach's 0.015 m is the reference's).",
+        unit='m', low=0, high=0.5, low_open=True)
+    radial_slope: float = setting(
+        200.0, "a_radial of the logistic radial activation (the reach's 200 is the reference's).",
+        unit='1/m', low=0, high=1e4, low_open=True)
+    normal_slope: float = setting(
+        400.0, "a_normal of the logistic normal activation (the reach's 400 is the reference's "
+        "300 in this logistic's units).", unit='1/m', low=0, high=1e4, low_open=True)
+    tangent_slope: float = setting(
+        400.0, "a_tangent of the logistic tangential activation (the reach's 400 is the "
+        "reference's).", unit='1/m', low=0, high=1e4, low_open=True)
 
     def __post_init__(self):
-        check_range('transitory_distance', self.transitory_distance, 0.0, 1.0, 'm',
-                    low_open=True)
-        check_range('radial_distance', self.radial_distance, 0.0, 2.0, 'm', low_open=True)
-        check_range('normal_distance', self.normal_distance, 0.0, 0.5, 'm', low_open=True)
-        check_range('tangent_distance', self.tangent_distance, 0.0, 0.5, 'm', low_open=True)
-        for name in ('radial_slope', 'normal_slope', 'tangent_slope'):
-            check_range(name, getattr(self, name), 0.0, 1e4, '1/m', low_open=True)
+        check_settings(self)
         margin = self.radial_slope * (self.radial_distance - self.transitory_distance)
         if margin < _FULL_ACTIVATION_MARGIN:
             raise ConfigError(

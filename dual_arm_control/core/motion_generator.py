@@ -28,14 +28,15 @@ from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_ds_angular_velocity,
                                                OrientationDsConfig)
 from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, PhaseMachine,
-                                          Task, task_from_name)
+                                          Task, task_from_name, TASK_NAMES)
 from dual_arm_control.core.reachability import ReachabilityConfig
+from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  boosted_velocity, reach_speed,
                                                  saturated_velocity, SpeedErrorIntegrator,
                                                  SpeedFilter, SpeedProfileConfig)
 from dual_arm_control.core.toss_planning import ReleasePlanningConfig
-from dual_arm_control.core.validation import check_range, check_vector, finite_array
+from dual_arm_control.core.validation import finite_array
 import numpy as np
 
 
@@ -44,29 +45,32 @@ class MotionGeneratorConfig:
     """
     Everything the motion generator needs besides its inputs (SI units).
 
-    Fields:
-        task: Task or its name.
-        object_size: (3,) m, box edges along object x, y (squeeze), z.
-        standby_positions: (2, 3) m, tool standby positions, rows left, right.
-        standby_rotations: (2, 3, 3), tool standby orientations in the world.
-        standby_gain: 1/s, > 0; per-arm point attractor gain toward standby (and on retract).
-        max_linear_speed: m/s, > 0; every tool velocity command is capped to this.
-        release_opening_speed: m/s, > 0; pads move apart along their normals at release.
-        toss_speed_time_constant: s, > 0; the object's desired speed rises from the impact speed
-            to the toss speed with this time constant after contact.
-        coordination, impact, toss, lift, place, speed, orientation, phases, contact, ft,
-            reachability, release_planning: the component configs (see their modules).
-
+    standby_positions (2, 3) [m] and standby_rotations (2, 3, 3) are the tool standby poses in the
+    world, rows left, right (set by the cell, not tunable); coordination, impact, toss, lift,
+    place, speed, orientation, phases, contact, ft, reachability and release_planning are the
+    component configs (see their modules).
     """
 
-    task: object = Task.PICK_AND_TOSS
-    object_size: tuple = (0.2, 0.2, 0.2)
+    task: object = setting(
+        Task.PICK_AND_TOSS.value, 'The task of the episode: what follows the grasp.',
+        choices=TASK_NAMES)
+    object_size: tuple = setting(
+        (0.2, 0.2, 0.2), 'Box edges along object x, y (the squeeze axis) and z.',
+        unit='m', low=0, low_open=True, size=3)
     standby_positions: tuple = ((0.35, 0.31, 0.80), (0.35, -0.31, 0.80))
     standby_rotations: tuple = (tuple(map(tuple, np.eye(3))), tuple(map(tuple, np.eye(3))))
-    standby_gain: float = 3.0
-    max_linear_speed: float = 1.4
-    release_opening_speed: float = 0.3
-    toss_speed_time_constant: float = 0.05
+    standby_gain: float = setting(
+        3.0, 'Per-arm point attractor gain toward standby (and on retract).',
+        unit='1/s', low=0, high=100.0, low_open=True)
+    max_linear_speed: float = setting(
+        1.4, 'Every tool velocity command is capped to this.',
+        unit='m/s', low=0, high=3.0, low_open=True)
+    release_opening_speed: float = setting(
+        0.3, 'Speed at which the pads move apart along their normals at release.',
+        unit='m/s', low=0, high=2.0, low_open=True)
+    toss_speed_time_constant: float = setting(
+        0.05, "The object's desired speed rises from the impact speed to the toss speed with "
+        'this time constant after contact.', unit='s', low=0, high=5.0, low_open=True)
     coordination: CoordinationConfig = field(default_factory=CoordinationConfig)
     impact: ImpactConfig = field(default_factory=ImpactConfig)
     toss: TossConfig = field(default_factory=TossConfig)
@@ -82,10 +86,7 @@ class MotionGeneratorConfig:
 
     def __post_init__(self):
         object.__setattr__(self, 'task', task_from_name(self.task))
-        size = check_vector('object_size', self.object_size, 3, 'm')
-        if np.any(size <= 0.0):
-            raise ConfigError(f'object_size must be positive [m], got {size.tolist()}')
-        object.__setattr__(self, 'object_size', tuple(size))
+        check_settings(self)
         positions = np.asarray(self.standby_positions, dtype=float)
         rotations = np.asarray(self.standby_rotations, dtype=float)
         if positions.shape != (2, 3) or rotations.shape != (2, 3, 3):
@@ -93,12 +94,6 @@ class MotionGeneratorConfig:
         for rotation in rotations:
             if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6):
                 raise ConfigError('standby_rotations must be rotation matrices')
-        check_range('standby_gain', self.standby_gain, 0.0, 100.0, '1/s', low_open=True)
-        check_range('max_linear_speed', self.max_linear_speed, 0.0, 3.0, 'm/s', low_open=True)
-        check_range('release_opening_speed', self.release_opening_speed, 0.0, 2.0, 'm/s',
-                    low_open=True)
-        check_range('toss_speed_time_constant', self.toss_speed_time_constant, 0.0, 5.0, 's',
-                    low_open=True)
 
 
 @dataclass(frozen=True)

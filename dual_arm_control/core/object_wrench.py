@@ -16,6 +16,7 @@ import dataclasses
 
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import cross3
+from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
 
@@ -29,22 +30,23 @@ class ObjectWrenchConfig:
     paper's state-varying D_o(x_o).
     """
 
-    linear_damping: float = 12.64
-    """d_lin, damping on the object's linear velocity error [N s/m]."""
-    angular_damping: float = 2.0
-    """d_ang, damping on the object's angular velocity error [N m s/rad]. The reference's 25
-    only worked because it never estimated omega; with a real estimate (noise ~0.2 rad/s) 25
-    asks the pads for 5 N m of pitch moment they cannot give, which saturates the QP."""
-    include_moment: bool = True
-    """If False the moment part of f_o^d is zero (force-only distribution)."""
-    gravity: float = 9.81
-    """Magnitude of gravity, acting along -z of the world [m/s^2]."""
+    linear_damping: float = setting(
+        12.64, "d_lin, damping on the object's linear velocity error.",
+        unit='N s/m', low=0, high=1e4)
+    angular_damping: float = setting(
+        2.0, "d_ang, damping on the object's angular velocity error. The reference's 25 only "
+        'worked because it never estimated omega; with a real estimate (noise ~0.2 rad/s) 25 '
+        'asks the pads for 5 N m of pitch moment they cannot give, which saturates the QP.',
+        unit='N m s/rad', low=0, high=1e4)
+    include_moment: bool = setting(
+        True, 'If false the moment part of f_o^d is zero (force-only distribution).')
+    gravity: float = setting(
+        9.81, 'Magnitude of gravity, acting along -z of the world.',
+        unit='m/s^2', low=0, high=100.0)
 
     def __post_init__(self):
         """Validate every field; raise ConfigError naming the field, value and range."""
-        check_range('linear_damping', self.linear_damping, 0.0, 1e4, 'N s/m')
-        check_range('angular_damping', self.angular_damping, 0.0, 1e4, 'N m s/rad')
-        check_range('gravity', self.gravity, 0.0, 100.0, 'm/s^2')
+        check_settings(self)
 
 
 def box_inertia(mass, size):

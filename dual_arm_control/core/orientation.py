@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import rotation_log, skew, slerp_rotation
-from dual_arm_control.core.validation import check_range, check_vector, finite_array
+from dual_arm_control.core.settings import check_settings, setting
+from dual_arm_control.core.validation import finite_array
 import numpy as np
 
 
@@ -32,34 +33,23 @@ _SERIES_ANGLE = 1e-3
 
 @dataclass(frozen=True)
 class OrientationDsConfig:
-    """
-    Parameters of the appendix-A orientation DS.
+    """Parameters of the appendix-A orientation DS."""
 
-    Fields:
-        convergence_rates: (3,) rad/s per rad, > 0; A_theta = -diag(convergence_rates) acting
-            on the error components (reference: 3 = 3 x unit orientation gain while reaching).
-        max_angular_speed: rad/s, > 0; the norm of omega is saturated to this (reference 3).
-        coupling_sigma: m, > 0; sigma of eta(x) = 1 - exp(-sigma / (||e_abs|| + epsilon))
-            (reference 1 m: eta = 0.9 at 0.43 m, 0.5 at 1.44 m).
-        coupling_epsilon: m, > 0; keeps eta defined (= 1) at zero position error.
-
-    """
-
-    convergence_rates: tuple = (3.0, 3.0, 3.0)
-    max_angular_speed: float = 3.0
-    coupling_sigma: float = 1.0
-    coupling_epsilon: float = 1e-6
+    convergence_rates: tuple = setting(
+        (3.0, 3.0, 3.0), 'A_theta = -diag(convergence_rates) acting on the error components '
+        '(reference: 3 = 3 x unit orientation gain while reaching).',
+        unit='rad/s per rad', low=0, low_open=True, size=3)
+    max_angular_speed: float = setting(
+        3.0, 'The norm of omega is saturated to this (reference 3).',
+        unit='rad/s', low=0, low_open=True)
+    coupling_sigma: float = setting(
+        1.0, 'sigma of eta(x) = 1 - exp(-sigma / (||e_abs|| + epsilon)) (reference 1 m: eta = '
+        '0.9 at 0.43 m, 0.5 at 1.44 m).', unit='m', low=0, low_open=True)
+    coupling_epsilon: float = setting(
+        1e-6, 'Keeps eta defined (= 1) at zero position error.', unit='m', low=0, low_open=True)
 
     def __post_init__(self):
-        rates = check_vector('convergence_rates', self.convergence_rates, 3, 'rad/s per rad')
-        for index, rate in enumerate(rates):
-            check_range(f'convergence_rates[{index}]', rate, 0.0, unit='rad/s per rad',
-                        low_open=True)
-        object.__setattr__(self, 'convergence_rates', tuple(float(r) for r in rates))
-        check_range('max_angular_speed', self.max_angular_speed, 0.0, unit='rad/s',
-                    low_open=True)
-        check_range('coupling_sigma', self.coupling_sigma, 0.0, unit='m', low_open=True)
-        check_range('coupling_epsilon', self.coupling_epsilon, 0.0, unit='m', low_open=True)
+        check_settings(self)
 
     @property
     def dynamics_matrix(self):

@@ -31,7 +31,7 @@ import math
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.reachability import inverse_kinematics_step, pose_error
-from dual_arm_control.core.validation import check_range, check_vector
+from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
 
@@ -53,57 +53,50 @@ class PassiveControllerConfig:
     Vector fields are 7 numbers, joints A1..A7.
     """
 
-    damping_along: float = 400.0
-    """lambda0, damping along the desired velocity [N s/m] (reference 70-150; 400 tracks the
-    0.5 m/s impact within 7 % and the 0.85 m/s toss within 5 % in the twin)."""
-    damping_across: float = 400.0
-    """lambda1, damping across the desired velocity [N s/m] (reference 70-150)."""
-    direction_blend_speed: float = 0.01
-    """Below about this desired speed D blends continuously to lambda1 I [m/s]."""
-    angular_damping: float = 6.0
-    """d_w, damping on w - w_d [N m s/rad] (reference 6)."""
-    orientation_stiffness: float = 10.0
-    """K_R, stiffness toward the desired orientation [N m/rad]."""
-    null_space_stiffness: tuple = (10.0,) * JOINTS
-    """K_n, posture stiffness [N m/rad]."""
-    null_space_damping: float = 1.0
-    """d_n, joint damping in the null space, same on every joint [N m s/rad]."""
-    null_space_error_limit: float = 0.4
-    """Per-joint posture error saturation [rad]."""
-    elbow_lift_force: float = 0.0
-    """Upward force on the elbow, applied in the null space [N]: of the postures that hold the
-    tool, the arm prefers the elbow-up one. Off by default: at 10 N it lifted the forearm off
-    the front table when placing but, leaking through the torque-level projector (not
-    dynamically consistent), doubled the contact-time gap of the impact in the twin."""
-    posture_tracking_step: float = 0.01
-    """Largest change of the null-space posture per control cycle [rad] as it follows an
-    inverse-kinematics solution of the DS's target pose within the joint limits (0: the posture
-    stays where it was set). The arm's redundancy then steers it to a configuration that can
-    hold the target, not into a joint limit on the way."""
-    projector_damping: float = 1e-3
-    """eps of the damped pseudo-inverse in the null-space projector [m, rad]."""
-    hold_damping: tuple = (10.0, 10.0, 8.0, 8.0, 4.0, 2.0, 2.0)
-    """D_hold of the safety hold torque g(q) - D_hold dq [N m s/rad]."""
+    damping_along: float = setting(
+        400.0, 'lambda0, damping along the desired velocity (reference 70-150; 400 tracks the '
+        '0.5 m/s impact within 7 % and the 0.85 m/s toss within 5 % in the twin).',
+        unit='N s/m', low=0, high=1e4, low_open=True)
+    damping_across: float = setting(
+        400.0, 'lambda1, damping across the desired velocity (reference 70-150).',
+        unit='N s/m', low=0, high=1e4, low_open=True)
+    direction_blend_speed: float = setting(
+        0.01, 'Below about this desired speed D blends continuously to lambda1 I.',
+        unit='m/s', low=0, high=10.0, low_open=True)
+    angular_damping: float = setting(
+        6.0, 'd_w, damping on w - w_d (reference 6).', unit='N m s/rad', low=0, high=1e3)
+    orientation_stiffness: float = setting(
+        10.0, 'K_R, stiffness toward the desired orientation.', unit='N m/rad', low=0, high=1e4)
+    null_space_stiffness: tuple = setting(
+        (10.0,) * JOINTS, 'K_n, posture stiffness per joint.',
+        unit='N m/rad', low=0, high=1e4, size=JOINTS)
+    null_space_damping: float = setting(
+        1.0, 'd_n, joint damping in the null space, same on every joint.',
+        unit='N m s/rad', low=0, high=1e3)
+    null_space_error_limit: float = setting(
+        0.4, 'Per-joint posture error saturation.', unit='rad', low=0, high=10.0, low_open=True)
+    elbow_lift_force: float = setting(
+        0.0, 'Upward force on the elbow, applied in the null space: of the postures that hold '
+        'the tool, the arm prefers the elbow-up one. Off by default: at 10 N it lifted the '
+        'forearm off the front table when placing but, leaking through the torque-level '
+        'projector (not dynamically consistent), doubled the contact-time gap of the impact in '
+        'the twin.', unit='N', low=0, high=500.0)
+    posture_tracking_step: float = setting(
+        0.01, 'Largest change of the null-space posture per control cycle as it follows an '
+        "inverse-kinematics solution of the DS's target pose within the joint limits (0: the "
+        "posture stays where it was set). The arm's redundancy then steers it to a configuration "
+        'that can hold the target, not into a joint limit on the way.',
+        unit='rad', low=0, high=1.0)
+    projector_damping: float = setting(
+        1e-3, 'eps of the damped pseudo-inverse in the null-space projector.',
+        unit='m, rad', low=0, high=1.0, low_open=True)
+    hold_damping: tuple = setting(
+        (10.0, 10.0, 8.0, 8.0, 4.0, 2.0, 2.0), 'D_hold of the safety hold torque g(q) - D_hold '
+        'dq, per joint.', unit='N m s/rad', low=0, high=1e4, size=JOINTS)
 
     def __post_init__(self):
         """Validate every field; raise ConfigError naming the field, value and range."""
-        check_range('damping_along', self.damping_along, 0.0, 1e4, 'N s/m', low_open=True)
-        check_range('damping_across', self.damping_across, 0.0, 1e4, 'N s/m', low_open=True)
-        check_range('direction_blend_speed', self.direction_blend_speed, 0.0, 10.0, 'm/s',
-                    low_open=True)
-        check_range('angular_damping', self.angular_damping, 0.0, 1e3, 'N m s/rad')
-        check_range('orientation_stiffness', self.orientation_stiffness, 0.0, 1e4, 'N m/rad')
-        check_range('null_space_error_limit', self.null_space_error_limit, 0.0, 10.0, 'rad',
-                    low_open=True)
-        check_range('projector_damping', self.projector_damping, 0.0, 1.0, '', low_open=True)
-        check_range('null_space_damping', self.null_space_damping, 0.0, 1e3, 'N m s/rad')
-        check_range('elbow_lift_force', self.elbow_lift_force, 0.0, 500.0, 'N')
-        check_range('posture_tracking_step', self.posture_tracking_step, 0.0, 1.0, 'rad')
-        for name, unit in (('null_space_stiffness', 'N m/rad'), ('hold_damping', 'N m s/rad')):
-            values = check_vector(name, getattr(self, name), JOINTS, unit)
-            for index, value in enumerate(values):
-                check_range(f'{name}[{index}]', value, 0.0, 1e4, unit)
-            object.__setattr__(self, name, tuple(float(v) for v in values))
+        check_settings(self)
 
 
 @dataclasses.dataclass(frozen=True)

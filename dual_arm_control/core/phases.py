@@ -20,7 +20,8 @@ import enum
 from dual_arm_control.core.contact import ContactState
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.release import TossRelease
-from dual_arm_control.core.validation import check_range, finite_array
+from dual_arm_control.core.settings import check_settings, setting
+from dual_arm_control.core.validation import finite_array
 import numpy as np
 
 
@@ -45,6 +46,10 @@ class Task(enum.Enum):
     TOSS_TO_TARGET = 'toss_to_target'
 
 
+TASK_NAMES = tuple(task.value for task in Task)
+"""The tasks by name, as parameters and scenario files give them."""
+
+
 def task_from_name(task):
     """Return the Task for a Task or its value ('pick_and_toss', ...); raise ConfigError."""
     try:
@@ -56,53 +61,48 @@ def task_from_name(task):
 
 @dataclass(frozen=True)
 class PhaseConfig:
-    """
-    Thresholds of the phase machine (SI units).
+    """Thresholds of the phase machine (SI units)."""
 
-    Fields:
-        contact_settle_time: s, >= 0; both pads must stay in contact this long in CONTACT.
-        single_contact_timeout: s, > 0; one pad in contact alone this long in REACH is reported.
-        grasp_close_timeout: s, > 0; one pad in contact alone this long in REACH aborts the
-            grasp: RETRACT, event 'grasp_aborted' (the other pad will not arrive in time).
-        release_tolerance: m, > 0; the paper's 0.03 m: an object inside this sphere around
-            x_release that starts moving away from it is released.
-        release_plane_radius: m, > 0; a toss releases when the object reaches the plane through
-            x_release across the release velocity within this distance of the release path.
-        release_lead_time: s, >= 0; the plane is reached this much early (object speed times
-            it), for the time the pads take to come off the box.
-        place_tolerance: m, > 0; place release when ||x_o - x_place|| <= this (0.012 m: the
-            place target lies a few mm below the resting pose, so this is on the table) ...
-        place_speed: m/s, > 0; ... and ||v_o|| < place_speed.
-        lift_tolerance: m, > 0; the 'lift_reached' event fires within this of the lift pose.
-        grasp_loss_timeout: s, > 0; a pad out of contact this long in MANIPULATE releases.
-        open_hands_time: s, > 0; RELEASE ends after this even if a pad still reads contact.
-        home_tolerance: m, > 0; RETRACT ends when both tools are this close to standby.
-
-    """
-
-    contact_settle_time: float = 0.05
-    single_contact_timeout: float = 0.2
-    grasp_close_timeout: float = 0.4
-    release_tolerance: float = 0.03
-    release_plane_radius: float = 0.10
-    release_lead_time: float = 0.0
-    place_tolerance: float = 0.012
-    place_speed: float = 0.1
-    lift_tolerance: float = 0.03
-    grasp_loss_timeout: float = 0.1
-    open_hands_time: float = 0.5
-    home_tolerance: float = 0.03
+    contact_settle_time: float = setting(
+        0.05, 'Both pads must stay in contact this long in CONTACT.', unit='s', low=0)
+    single_contact_timeout: float = setting(
+        0.2, 'One pad in contact alone this long in REACH is reported.',
+        unit='s', low=0, low_open=True)
+    grasp_close_timeout: float = setting(
+        0.4, 'One pad in contact alone this long in REACH aborts the grasp: RETRACT, event '
+        "'grasp_aborted' (the other pad will not arrive in time).", unit='s', low=0, low_open=True)
+    release_tolerance: float = setting(
+        0.03, "The paper's 0.03 m: an object inside this sphere around x_release that starts "
+        'moving away from it is released.', unit='m', low=0, low_open=True)
+    release_plane_radius: float = setting(
+        0.10, 'A toss releases when the object reaches the plane through x_release across the '
+        'release velocity within this distance of the release path.',
+        unit='m', low=0, low_open=True)
+    release_lead_time: float = setting(
+        0.0, 'The release plane is reached this much early (object speed times it), for the time '
+        'the pads take to come off the box.', unit='s', low=0, high=1.0)
+    place_tolerance: float = setting(
+        0.012, 'Place release when ||x_o - x_place|| <= this and the object is slower than '
+        'place_speed (0.012 m: the place target lies a few mm below the resting pose, so this is '
+        'on the table).', unit='m', low=0, low_open=True)
+    place_speed: float = setting(
+        0.1, 'Place release when ||v_o|| < this (and within place_tolerance).',
+        unit='m/s', low=0, low_open=True)
+    lift_tolerance: float = setting(
+        0.03, "The 'lift_reached' event fires within this of the lift pose.",
+        unit='m', low=0, low_open=True)
+    grasp_loss_timeout: float = setting(
+        0.1, 'A pad out of contact this long in MANIPULATE releases.',
+        unit='s', low=0, low_open=True)
+    open_hands_time: float = setting(
+        0.5, 'RELEASE ends after this even if a pad still reads contact.',
+        unit='s', low=0, low_open=True)
+    home_tolerance: float = setting(
+        0.03, 'RETRACT ends when both tools are this close to standby.',
+        unit='m', low=0, low_open=True)
 
     def __post_init__(self):
-        check_range('contact_settle_time', self.contact_settle_time, 0.0, unit='s')
-        check_range('release_lead_time', self.release_lead_time, 0.0, 1.0, 's')
-        for name, unit in (('single_contact_timeout', 's'), ('grasp_close_timeout', 's'),
-                           ('release_tolerance', 'm'),
-                           ('release_plane_radius', 'm'), ('place_tolerance', 'm'),
-                           ('place_speed', 'm/s'), ('lift_tolerance', 'm'),
-                           ('grasp_loss_timeout', 's'), ('open_hands_time', 's'),
-                           ('home_tolerance', 'm')):
-            check_range(name, getattr(self, name), 0.0, unit=unit, low_open=True)
+        check_settings(self)
 
 
 _VECTOR_FIELDS = ('p_world_tool_left', 'p_world_tool_right', 'p_world_object',

@@ -13,54 +13,44 @@ from dataclasses import dataclass
 import math
 
 from dual_arm_control.core.arms import ARMS
-from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
 
 @dataclass(frozen=True)
 class ReachabilityConfig:
-    """
-    Inverse-kinematics check of the grasp frames (SI units).
+    """Inverse-kinematics check of the grasp frames (SI units)."""
 
-    Fields: enabled: check before the reach (False: reach whatever the arms can do);
-    pad_half_length m > 0, half the pad's extent along the face (object x); joint_margin
-    rad >= 0, kept from every joint limit; position_tolerance m > 0 and
-    orientation_tolerance rad > 0, the largest residual of a reachable pose; max_iterations,
-    of the damped least-squares solve; max_step rad > 0, the largest joint step of one
-    iteration; damping (m or rad)^2 > 0, its regularisation;
-    shift_steps >= 1, the number of grasp shifts tried beyond the centred grasp; edge_margin
-    m, kept between the pad's end and the face's edge (negative: the pad may overhang the edge
-    by that much; -0.03 m leaves 80 % of the 0.15 m pad on the face).
-    """
-
-    enabled: bool = True
-    pad_half_length: float = 0.075
-    joint_margin: float = 0.0
-    position_tolerance: float = 0.005
-    orientation_tolerance: float = 0.05
-    max_iterations: int = 300
-    max_step: float = 0.2
-    damping: float = 1e-4
-    shift_steps: int = 3
-    edge_margin: float = -0.03
+    enabled: bool = setting(
+        True, 'Check the grasp frames before the reach (false: reach whatever the arms can do).')
+    pad_half_length: float = setting(
+        0.075, "Half the pad's extent along the face (object x).",
+        unit='m', low=0, high=0.5, low_open=True)
+    joint_margin: float = setting(0.0, 'Kept from every joint limit.', unit='rad', low=0, high=0.5)
+    position_tolerance: float = setting(
+        0.005, 'Largest position residual of a reachable pose.',
+        unit='m', low=0, high=0.1, low_open=True)
+    orientation_tolerance: float = setting(
+        0.05, 'Largest orientation residual of a reachable pose.',
+        unit='rad', low=0, high=1.0, low_open=True)
+    max_iterations: int = setting(
+        300, 'Iterations of the damped least-squares solve.', low=1, high=10000)
+    max_step: float = setting(
+        0.2, 'Largest joint step of one iteration.', unit='rad', low=0, high=1.0, low_open=True)
+    damping: float = setting(
+        1e-4, 'Regularisation of the damped least-squares solve.',
+        unit='(m or rad)^2', low=0, high=1.0, low_open=True)
+    shift_steps: int = setting(
+        3, 'Number of grasp shifts along the face tried beyond the centred grasp.', low=0, high=10)
+    edge_margin: float = setting(
+        -0.03, "Kept between the pad's end and the face's edge (negative: the pad may overhang "
+        'the edge by that much; -0.03 m leaves 80 % of the 0.15 m pad on the face).',
+        unit='m', low=-0.1, high=0.5)
 
     def __post_init__(self):
-        if not isinstance(self.enabled, (bool, np.bool_)):
-            raise ConfigError(f'enabled must be true or false, got {self.enabled!r}')
-        check_range('pad_half_length', self.pad_half_length, 0.0, 0.5, 'm', low_open=True)
-        check_range('joint_margin', self.joint_margin, 0.0, 0.5, 'rad')
-        check_range('position_tolerance', self.position_tolerance, 0.0, 0.1, 'm',
-                    low_open=True)
-        check_range('orientation_tolerance', self.orientation_tolerance, 0.0, 1.0, 'rad',
-                    low_open=True)
-        check_range('max_iterations', self.max_iterations, 1, 10000, '')
-        check_range('max_step', self.max_step, 0.0, 1.0, 'rad', low_open=True)
-        check_range('damping', self.damping, 0.0, 1.0, '', low_open=True)
-        check_range('shift_steps', self.shift_steps, 0, 10, '')
-        check_range('edge_margin', self.edge_margin, -0.1, 0.5, 'm')
+        check_settings(self)
 
 
 @dataclass(frozen=True)

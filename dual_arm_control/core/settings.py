@@ -9,6 +9,7 @@ so a range cannot be declared in one place and enforced differently in another.
 """
 
 from dataclasses import dataclass, field, fields, replace
+import enum
 import math
 
 from dual_arm_control.core.exceptions import ConfigError
@@ -82,6 +83,8 @@ class Setting:
     def problem(self, value, name=None):
         """Return why value is not allowed (naming the setting, value and range), or None."""
         name = name or self.name
+        if isinstance(value, enum.Enum):
+            value = value.value
         kind = self.kind
         if kind is bool:
             return None if isinstance(value, (bool, np.bool_)) else (

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import math
 
 from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import check_range
 import numpy as np
 
@@ -18,30 +19,25 @@ _MIN_SPEED = 1e-9
 
 @dataclass(frozen=True)
 class SpeedProfileConfig:
-    """
-    Speed profile of the reach with impact.
+    """Speed profile of the reach with impact."""
 
-    reach_speed: speed of the faster arm far from the object [m/s], in (0, 2]. Default 0.85,
-        the reference's desVreach.
-    near_distance: distance to the grasp point below which the impact speed applies [m];
-        must cover the run from the transitory attractor (its rho, 0.2 m) with some margin.
-        Default 0.25.
-    far_distance: distance above which the reach speed applies [m], > near_distance.
-        Default 0.5.
-    time_constant: time constant of SpeedFilter [s], in (0, 10].
-    """
-
-    reach_speed: float = 0.85
-    near_distance: float = 0.25
-    far_distance: float = 0.50
-    time_constant: float = 0.05
+    reach_speed: float = setting(
+        0.85, "Speed of the faster arm far from the object. Default 0.85, the reference's "
+        'desVreach.', unit='m/s', low=0, high=2.0, low_open=True)
+    near_distance: float = setting(
+        0.25, 'Distance to the grasp point below which the impact speed applies; must cover the '
+        'run from the transitory attractor (its rho, 0.2 m) with some margin.',
+        unit='m', low=0, high=2.0)
+    far_distance: float = setting(
+        0.50, 'Distance above which the reach speed applies; more than near_distance.',
+        unit='m', low=0, high=5.0, low_open=True)
+    time_constant: float = setting(
+        0.05, 'Time constant of SpeedFilter.', unit='s', low=0, high=10.0, low_open=True)
 
     def __post_init__(self):
-        check_range('reach_speed', self.reach_speed, 0.0, 2.0, 'm/s', low_open=True)
-        check_range('near_distance', self.near_distance, 0.0, 2.0, 'm')
+        check_settings(self)
         check_range('far_distance', self.far_distance, self.near_distance, 5.0, 'm',
                     low_open=True)
-        check_range('time_constant', self.time_constant, 0.0, 10.0, 's', low_open=True)
 
 
 def speed_blend_weight(distance, near_distance, far_distance):

@@ -16,63 +16,60 @@ from typing import NamedTuple
 
 from dual_arm_control.core.ballistics import (landing_without_drag, STANDARD_GRAVITY,
                                               UnreachableTargetError)
-from dual_arm_control.core.validation import check_range, check_vector, finite_array
+from dual_arm_control.core.settings import check_settings, setting
+from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
 
 
 @dataclass(frozen=True)
 class ReleasePlanningConfig:
-    """
-    Where and how fast the object may be released (world frame, SI units).
+    """Where and how fast the object may be released (world frame, SI units)."""
 
-    x_range, y_range, z_range: the release region [m] (low, high): the arms hold the paper
-        cube anywhere in it within their joint limits (checked by test_toss_planning with
-        core.reachability). Defaults (0.60, 0.72), (-0.12, 0.12), (0.40, 0.55).
-    grid_step: spacing of the candidate release points [m], > 0. Default 0.02.
-    min_release_speed: m/s, > 0; the release speed of a near target (the toss DS needs to
-        carry the box at a speed, not drop it). Default 0.6.
-    max_release_speed: m/s, > min_release_speed; the fastest release planned. Default 1.3: the
-        paper cube is then released within 2 % of its speed and 2 deg of its direction, though
-        its pads slip ~1 cm on it (measured in the twin, toss_to_target).
-    min_elevation_deg: flattest throw [deg]. Default 0.
-    max_heading_deg: largest |heading| of the throw from world +x [deg]. Default 60.
-    max_elevation_deg: steepest throw [deg]. Default 55.
-    position_weight: m/s per m; cost of moving the release away from the nominal point against
-        the speed it saves. Default 1.
-    preferred_elevation_deg, elevation_weight (m/s per rad): the elevation the toss DS tracks
-        best (that of the paper's release, 27 deg) and the cost of leaving it. Defaults 25, 1.
-    """
-
-    x_range: tuple = (0.60, 0.72)
-    y_range: tuple = (-0.12, 0.12)
-    z_range: tuple = (0.40, 0.55)
-    grid_step: float = 0.02
-    min_release_speed: float = 0.6
-    max_release_speed: float = 1.3
-    min_elevation_deg: float = 0.0
-    max_heading_deg: float = 60.0
-    max_elevation_deg: float = 55.0
-    position_weight: float = 1.0
-    preferred_elevation_deg: float = 25.0
-    elevation_weight: float = 1.0
+    x_range: tuple = setting(
+        (0.60, 0.72), 'Release region along world x (low, high): the arms hold the paper cube '
+        'anywhere in the region within their joint limits (checked by test_toss_planning with '
+        'core.reachability).', unit='m', low=-3.0, high=3.0, size=2)
+    y_range: tuple = setting(
+        (-0.12, 0.12), 'Release region along world y (low, high).',
+        unit='m', low=-3.0, high=3.0, size=2)
+    z_range: tuple = setting(
+        (0.40, 0.55), 'Release region along world z (low, high).',
+        unit='m', low=-3.0, high=3.0, size=2)
+    grid_step: float = setting(
+        0.02, 'Spacing of the candidate release points.', unit='m', low=0, high=1.0, low_open=True)
+    min_release_speed: float = setting(
+        0.6, 'The release speed of a near target (the toss DS needs to carry the box at a speed, '
+        'not drop it).', unit='m/s', low=0, high=3.0, low_open=True)
+    max_release_speed: float = setting(
+        1.3, 'The fastest release planned, at least min_release_speed. Default 1.3: the paper '
+        'cube is then released within 2 % of its speed and 2 deg of its direction, though its '
+        'pads slip ~1 cm on it (measured in the twin, toss_to_target).',
+        unit='m/s', low=0, high=3.0, low_open=True)
+    min_elevation_deg: float = setting(0.0, 'Flattest throw.', unit='deg', low=-90.0, high=90.0)
+    max_heading_deg: float = setting(
+        60.0, 'Largest |heading| of the throw from world +x.', unit='deg', low=0, high=180.0)
+    max_elevation_deg: float = setting(
+        55.0, 'Steepest throw, at least min_elevation_deg.', unit='deg', low=-90.0, high=90.0)
+    position_weight: float = setting(
+        1.0, 'Cost of moving the release away from the nominal point against the speed it saves.',
+        unit='m/s per m', low=0, high=100.0)
+    preferred_elevation_deg: float = setting(
+        25.0, "The elevation the toss DS tracks best (that of the paper's release, 27 deg), "
+        'between min_elevation_deg and max_elevation_deg.', unit='deg', low=-90.0, high=90.0)
+    elevation_weight: float = setting(
+        1.0, 'Cost of leaving preferred_elevation_deg.', unit='m/s per rad', low=0, high=100.0)
 
     def __post_init__(self):
+        check_settings(self)
         for name in ('x_range', 'y_range', 'z_range'):
-            low, high = check_vector(name, getattr(self, name), 2, 'm')
+            low, high = getattr(self, name)
             check_range(f'{name}[1]', high, low, 3.0, 'm')
-        check_range('grid_step', self.grid_step, 0.0, 1.0, 'm', low_open=True)
-        check_range('min_release_speed', self.min_release_speed, 0.0, 3.0, 'm/s',
-                    low_open=True)
         check_range('max_release_speed', self.max_release_speed, self.min_release_speed, 3.0,
                     'm/s')
-        check_range('min_elevation_deg', self.min_elevation_deg, -90.0, 90.0, 'deg')
-        check_range('max_heading_deg', self.max_heading_deg, 0.0, 180.0, 'deg')
         check_range('max_elevation_deg', self.max_elevation_deg, self.min_elevation_deg, 90.0,
                     'deg')
-        check_range('position_weight', self.position_weight, 0.0, 100.0, 'm/s per m')
         check_range('preferred_elevation_deg', self.preferred_elevation_deg,
                     self.min_elevation_deg, self.max_elevation_deg, 'deg')
-        check_range('elevation_weight', self.elevation_weight, 0.0, 100.0, 'm/s per rad')
 
 
 class ReleasePlan(NamedTuple):

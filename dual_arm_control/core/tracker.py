@@ -43,7 +43,7 @@ from dual_arm_control.core.estimate import (left_jacobian_so3, MeasurementOutcom
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import (matrix_to_quat_xyzw, quat_xyzw_to_matrix,
                                             rotation_exp, rotation_log)
-from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
 _IDENTITY_2 = np.eye(2)
@@ -61,44 +61,39 @@ class TrackerConfig:
     acceleration of 8.5 m/s^2 (the toss ramp) is followed with about 0.08 m/s lag.
     """
 
-    position_noise: float = 0.0005
-    """Standard deviation of each measured position coordinate [m]."""
-    orientation_noise: float = 0.005
-    """Standard deviation of each component of the measured rotation error vector [rad]."""
-    acceleration_noise: float = 0.5
-    """Square root of the white linear acceleration PSD [m/s^2/sqrt(s)]."""
-    angular_acceleration_noise: float = 2.0
-    """Square root of the white angular acceleration PSD [rad/s^2/sqrt(s)]."""
-    initial_velocity_std: float = 1.0
-    """Prior standard deviation of each linear velocity component at track start [m/s]."""
-    initial_angular_velocity_std: float = 3.0
-    """Prior standard deviation of each angular velocity component at track start [rad/s]."""
-    gate_chi_square: float = 21.11
-    """Gate on the squared Mahalanobis distance (3 dof); 21.11 is the 0.9999 quantile [-]."""
-    rejection_reset_time: float = 0.05
-    """Duration of uninterrupted gate failures after which the track restarts [s]."""
-    lost_timeout: float = 0.5
-    """Time without an accepted sample after which the object is declared lost [s]."""
-    gravity: float = 9.81
-    """Gravitational acceleration applied along -z during a declared free flight [m/s^2]."""
+    position_noise: float = setting(
+        0.0005, 'Standard deviation of each measured position coordinate.',
+        unit='m', low=0, high=1, low_open=True)
+    orientation_noise: float = setting(
+        0.005, 'Standard deviation of each component of the measured rotation error vector.',
+        unit='rad', low=0, high=1, low_open=True)
+    acceleration_noise: float = setting(
+        0.5, 'Square root of the white linear acceleration PSD.',
+        unit='m/s^2/sqrt(s)', low=0, high=1e3, low_open=True)
+    angular_acceleration_noise: float = setting(
+        2.0, 'Square root of the white angular acceleration PSD.',
+        unit='rad/s^2/sqrt(s)', low=0, high=1e4, low_open=True)
+    initial_velocity_std: float = setting(
+        1.0, 'Prior standard deviation of each linear velocity component at track start.',
+        unit='m/s', low=0, high=100.0, low_open=True)
+    initial_angular_velocity_std: float = setting(
+        3.0, 'Prior standard deviation of each angular velocity component at track start.',
+        unit='rad/s', low=0, high=1000.0, low_open=True)
+    gate_chi_square: float = setting(
+        21.11, 'Gate on the squared Mahalanobis distance (3 dof); 21.11 is the 0.9999 quantile.',
+        low=0, low_open=True)
+    rejection_reset_time: float = setting(
+        0.05, 'Duration of uninterrupted gate failures after which the track restarts.',
+        unit='s', low=0, high=60.0, low_open=True)
+    lost_timeout: float = setting(
+        0.5, 'Time without an accepted sample after which the object is declared lost.',
+        unit='s', low=0, high=60.0, low_open=True)
+    gravity: float = setting(
+        9.81, 'Gravitational acceleration applied along -z during a declared free flight.',
+        unit='m/s^2', low=0, high=100.0)
 
     def __post_init__(self):
-        check_range('position_noise', self.position_noise, 0.0, 1.0, 'm', low_open=True)
-        check_range('orientation_noise', self.orientation_noise, 0.0, 1.0, 'rad',
-                    low_open=True)
-        check_range('acceleration_noise', self.acceleration_noise, 0.0, 1e3,
-                    'm/s^2/sqrt(s)', low_open=True)
-        check_range('angular_acceleration_noise', self.angular_acceleration_noise, 0.0, 1e4,
-                    'rad/s^2/sqrt(s)', low_open=True)
-        check_range('initial_velocity_std', self.initial_velocity_std, 0.0, 100.0, 'm/s',
-                    low_open=True)
-        check_range('initial_angular_velocity_std', self.initial_angular_velocity_std, 0.0,
-                    1000.0, 'rad/s', low_open=True)
-        check_range('gate_chi_square', self.gate_chi_square, 0.0, math.inf, low_open=True)
-        check_range('rejection_reset_time', self.rejection_reset_time, 0.0, 60.0, 's',
-                    low_open=True)
-        check_range('lost_timeout', self.lost_timeout, 0.0, 60.0, 's', low_open=True)
-        check_range('gravity', self.gravity, 0.0, 100.0, 'm/s^2')
+        check_settings(self)
 
 
 class ObjectTracker:

@@ -1,28 +1,9 @@
 """Checks shared by the typed config objects and the core entry points."""
 
-import contextlib
 import math
 
 from dual_arm_control.core.exceptions import ConfigError, InputError
 import numpy as np
-
-_range_records = None
-
-
-@contextlib.contextmanager
-def recorded_ranges():
-    """
-    Record every check_range call made inside the block as {name: (low, high, unit)}.
-
-    Lets the parameter layer read each config field's valid interval from the same code that
-    enforces it, so declared ranges and validation cannot disagree.
-    """
-    global _range_records
-    outer, _range_records = _range_records, {}
-    try:
-        yield _range_records
-    finally:
-        _range_records = outer
 
 
 def check_range(name, value, low=-math.inf, high=math.inf, unit='', low_open=False,
@@ -33,8 +14,6 @@ def check_range(name, value, low=-math.inf, high=math.inf, unit='', low_open=Fal
     The message names the field, the value, the allowed interval and the unit, so a refused
     parameter explains itself.
     """
-    if _range_records is not None:
-        _range_records[name] = (low, high, unit)
     unit_text = f' {unit}' if unit else ''
     try:
         number = float(value)

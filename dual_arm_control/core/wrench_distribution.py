@@ -15,7 +15,7 @@ from dual_arm_control.core.object_wrench import (box_inertia, desired_object_wre
                                                  inertial_wrench, ObjectWrenchConfig)
 from dual_arm_control.core.pad_contact import pad_contact_geometry
 from dual_arm_control.core.phases import Phase
-from dual_arm_control.core.validation import check_range
+from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.wrench_qp import ContactWrenchQP, WrenchQPConfig
 import numpy as np
 
@@ -39,30 +39,28 @@ class WrenchDistributorConfig:
     """
     Wrench distribution around the QP (SI units).
 
-    Fields: ramp_time_constant s > 0, the grasp wrench rises as 1 - exp(-t / tau) after contact
-    (and drops to zero at once outside CONTACT / MANIPULATE); design_acceleration m/s^2 >= 0,
-    the largest object acceleration the grasp must carry on top of gravity, and
-    grip_safety_factor >= 1: together they raise the QP's normal-force bounds for heavy boxes
-    (grip_normal_force); feed_forward_time_constant s > 0: low-pass of the desired object
-    acceleration (the difference of the DS's desired velocity between ticks) whose inertial
-    wrench is added to f_o^d, clipped to 2 design_acceleration; qp and object: the QP's and
-    the object wrench's configs.
+    qp and object are the configs of the QP and of the object wrench.
     """
 
-    ramp_time_constant: float = 0.02
-    design_acceleration: float = 6.0
-    grip_safety_factor: float = 1.2
-    feed_forward_time_constant: float = 0.02
+    ramp_time_constant: float = setting(
+        0.02, 'tau: the grasp wrench rises as 1 - exp(-t / tau) after contact (and drops to zero '
+        'at once outside CONTACT / MANIPULATE).', unit='s', low=0, high=1.0, low_open=True)
+    design_acceleration: float = setting(
+        6.0, 'Largest object acceleration the grasp must carry on top of gravity; with '
+        "grip_safety_factor it raises the QP's normal-force bounds for heavy boxes "
+        '(grip_normal_force).', unit='m/s^2', low=0, high=50.0)
+    grip_safety_factor: float = setting(
+        1.2, "Safety factor on the normal force a box's weight and design_acceleration need "
+        '(grip_normal_force).', low=1.0, high=10.0)
+    feed_forward_time_constant: float = setting(
+        0.02, "Low-pass of the desired object acceleration (the difference of the DS's desired "
+        'velocity between ticks) whose inertial wrench is added to f_o^d, clipped to 2 '
+        'design_acceleration.', unit='s', low=0, high=1.0, low_open=True)
     qp: WrenchQPConfig = WrenchQPConfig()
     object: ObjectWrenchConfig = ObjectWrenchConfig()  # noqa: A003
 
     def __post_init__(self):
-        check_range('ramp_time_constant', self.ramp_time_constant, 0.0, 1.0, 's',
-                    low_open=True)
-        check_range('design_acceleration', self.design_acceleration, 0.0, 50.0, 'm/s^2')
-        check_range('grip_safety_factor', self.grip_safety_factor, 1.0, 10.0, '')
-        check_range('feed_forward_time_constant', self.feed_forward_time_constant, 0.0, 1.0,
-                    's', low_open=True)
+        check_settings(self)
 
 
 def grip_normal_force(mass, friction_coefficient, acceleration, gravity, safety_factor):

@@ -42,9 +42,10 @@ degenerate).
 import dataclasses
 import math
 
-from dual_arm_control.core.exceptions import ConfigError, InputError, SolverError
+from dual_arm_control.core.exceptions import InputError, SolverError
 from dual_arm_control.core.geometry import skew
 from dual_arm_control.core.pad_contact import PAD_ORDER
+from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import check_range
 import numpy as np
 import proxsuite
@@ -84,71 +85,67 @@ class WrenchQPConfig:
     centre-of-pressure limits are the pad's half sizes (the reference used 0.05 m for both).
     """
 
-    friction_coefficient: float = 0.9
-    """Coulomb friction mu between pad and object [-]; pyramid half-width mu / sqrt(2)."""
-    torsion_arm: float = 0.02
-    """gamma_t: torsional friction limit |m_z| <= gamma_t f_z [m]; no more than the pads'
-    real torsional friction (0.02 m in the twin's contact model, sim_bridge/scene.py)."""
-    pad_half_length: float = 0.075
-    """Half extent of the pad along the pad x axis: |m_y| <= this * f_z [m]."""
-    pad_half_width: float = 0.05
-    """Half extent of the pad along the pad y axis: |m_x| <= this * f_z [m]."""
-    min_normal_force: float = 30.0
-    """Lower bound of the normal force of a pad in contact [N]."""
-    max_normal_force: float = 45.0
-    """Upper bound of the normal force of a pad in contact [N]."""
-    squeeze_force: float = 30.0
-    """Normal force of the preferred wrench f_e^* of a pad in contact [N]."""
-    contact_distance: float = 0.055
-    """A pad whose normal distance to its face exceeds this may not push (Q_eo) [m]."""
-    force_weight: float = 0.5
-    """W_e diagonal on pad forces [1/N^2]."""
-    moment_weight: float = 5.0
-    """W_e diagonal on pad moments [1/(N m)^2]."""
-    balance_force_weight: float = 100.0
-    """W_o diagonal on the force part of the balance residual [1/N^2] (reference 100)."""
-    balance_moment_weight: float = 200.0
-    """W_o diagonal on the moment part of the balance residual [1/(N m)^2] (reference 200)."""
-    balance_force_l1_weight: float = 1000.0
-    """rho on |force residual| [1/N]; exact while above the balance multipliers."""
-    balance_moment_l1_weight: float = 1000.0
-    """rho on |moment residual| [1/(N m)]; exact while above the balance multipliers."""
-    slack_tolerance: float = 1e-3
-    """The solution counts as feasible while ||s|| <= this [N, N m]."""
-    solver_tolerance: float = 1e-9
-    """proxsuite eps_abs on primal and dual residuals [N, N m]."""
-    warm_max_iterations: int = 15
-    """proxsuite outer-iteration limit of a warm-started solve before the cold retry [-]."""
-    max_iterations: int = 200
-    """proxsuite outer-iteration limit of a cold solve [-]."""
-    max_inner_iterations: int = 10
-    """proxsuite inner iterations per outer one; healthy solves use 1-2 [-]."""
+    friction_coefficient: float = setting(
+        0.9, 'Coulomb friction mu between pad and object; pyramid half-width mu / sqrt(2).',
+        low=0, high=5.0, low_open=True)
+    torsion_arm: float = setting(
+        0.02, "gamma_t: torsional friction limit |m_z| <= gamma_t f_z; no more than the pads' "
+        "real torsional friction (0.02 m in the twin's contact model, sim_bridge/scene.py).",
+        unit='m', low=0, high=1.0)
+    pad_half_length: float = setting(
+        0.075, 'Half extent of the pad along the pad x axis: |m_y| <= this * f_z.',
+        unit='m', low=0, high=1.0, low_open=True)
+    pad_half_width: float = setting(
+        0.05, 'Half extent of the pad along the pad y axis: |m_x| <= this * f_z.',
+        unit='m', low=0, high=1.0, low_open=True)
+    min_normal_force: float = setting(
+        30.0, 'Lower bound of the normal force of a pad in contact.', unit='N', low=0, high=1000.0)
+    max_normal_force: float = setting(
+        45.0, 'Upper bound of the normal force of a pad in contact, above min_normal_force.',
+        unit='N', low=0, high=1000.0, low_open=True)
+    squeeze_force: float = setting(
+        30.0, 'Normal force of the preferred wrench f_e^* of a pad in contact, at most '
+        'max_normal_force.', unit='N', low=0, high=1000.0)
+    contact_distance: float = setting(
+        0.055, 'A pad whose normal distance to its face exceeds this may not push (Q_eo).',
+        unit='m', low=0, high=1.0)
+    force_weight: float = setting(
+        0.5, 'W_e diagonal on pad forces.', unit='1/N^2', low=0, high=1000.0, low_open=True)
+    moment_weight: float = setting(
+        5.0, 'W_e diagonal on pad moments.', unit='1/(N m)^2', low=0, high=1000.0, low_open=True)
+    balance_force_weight: float = setting(
+        100.0, 'W_o diagonal on the force part of the balance residual (reference 100).',
+        unit='1/N^2', low=0, high=1e6, low_open=True)
+    balance_moment_weight: float = setting(
+        200.0, 'W_o diagonal on the moment part of the balance residual (reference 200).',
+        unit='1/(N m)^2', low=0, high=1e6, low_open=True)
+    balance_force_l1_weight: float = setting(
+        1000.0, 'rho on |force residual|; exact while above the balance multipliers.',
+        unit='1/N', low=0, high=1e6)
+    balance_moment_l1_weight: float = setting(
+        1000.0, 'rho on |moment residual|; exact while above the balance multipliers.',
+        unit='1/(N m)', low=0, high=1e6)
+    slack_tolerance: float = setting(
+        1e-3, 'The solution counts as feasible while ||s|| <= this.',
+        unit='N, N m', low=0, high=1000.0, low_open=True)
+    solver_tolerance: float = setting(
+        1e-9, 'proxsuite eps_abs on primal and dual residuals.',
+        unit='N, N m', low=0, high=0.01, low_open=True)
+    warm_max_iterations: int = setting(
+        15, 'proxsuite outer-iteration limit of a warm-started solve before the cold retry.',
+        low=1, high=1000000)
+    max_iterations: int = setting(
+        200, 'proxsuite outer-iteration limit of a cold solve.', low=1, high=1000000)
+    max_inner_iterations: int = setting(
+        10, 'proxsuite inner iterations per outer one; healthy solves use 1-2.',
+        low=1, high=1000000)
 
     def __post_init__(self):
         """Validate every field; raise ConfigError naming the field, value and range."""
-        check_range('friction_coefficient', self.friction_coefficient, 0.0, 5.0, '',
-                    low_open=True)
-        check_range('torsion_arm', self.torsion_arm, 0.0, 1.0, 'm')
-        check_range('pad_half_length', self.pad_half_length, 0.0, 1.0, 'm', low_open=True)
-        check_range('pad_half_width', self.pad_half_width, 0.0, 1.0, 'm', low_open=True)
-        check_range('min_normal_force', self.min_normal_force, 0.0, 1000.0, 'N')
+        check_settings(self)
         check_range('max_normal_force', self.max_normal_force, self.min_normal_force, 1000.0,
                     'N', low_open=True)
         check_range('squeeze_force', self.squeeze_force, 0.0, self.max_normal_force, 'N')
-        check_range('contact_distance', self.contact_distance, 0.0, 1.0, 'm')
-        for name in ('force_weight', 'moment_weight'):
-            check_range(name, getattr(self, name), 0.0, 1e3, '', low_open=True)
-        for name in ('balance_force_weight', 'balance_moment_weight'):
-            check_range(name, getattr(self, name), 0.0, 1e6, '', low_open=True)
-        for name in ('balance_force_l1_weight', 'balance_moment_l1_weight'):
-            check_range(name, getattr(self, name), 0.0, 1e6, '')
-        check_range('slack_tolerance', self.slack_tolerance, 0.0, 1e3, '', low_open=True)
-        check_range('solver_tolerance', self.solver_tolerance, 0.0, 1e-2, '', low_open=True)
-        for name in ('warm_max_iterations', 'max_iterations', 'max_inner_iterations'):
-            value = getattr(self, name)
-            check_range(name, value, 1, 1e6, '')
-            if int(value) != value:
-                raise ConfigError(f'{name} must be an integer, got {value!r}')
 
 
 @dataclasses.dataclass(frozen=True)
