@@ -20,6 +20,7 @@ RANDOMIZED_RANGES = {
     'friction': ('', 0.0, 10.0, False),
     'mocap_noise': ('m', 0.0, 0.1, True),
     'mocap_latency': ('s', 0.0, 1.0, True),
+    'release_yaw': ('deg', -180.0, 180.0, True),
 }
 
 
@@ -34,7 +35,8 @@ class Randomization:
     world x and y (uniform in +-, the box rests on the surface below); object_yaw: half-range
     [rad] of the offset of the initial yaw; mass (low, high) [kg], size_scale (low, high) [-]
     (factor on all three edges), friction (low, high) [-], mocap_noise (low, high) [m] (mocap
-    position noise standard deviation) and mocap_latency (low, high) [s]: ranges drawn
+    position noise standard deviation), mocap_latency (low, high) [s] and release_yaw (low,
+    high) [deg] (yaw of the object's orientation at release, toss tasks): ranges drawn
     uniformly, None keeps the scenario's (or the drawn type's) value. The controllers are
     given the drawn object (the scenario is their prior as well as the twin's truth).
     """
@@ -47,6 +49,7 @@ class Randomization:
     friction: object = None
     mocap_noise: object = None
     mocap_latency: object = None
+    release_yaw: object = None
 
     def __post_init__(self):
         if self.object_types is not None:

@@ -119,7 +119,9 @@ class Scenario:
     One run of the cell.
 
     Fields: name; seed (noise RNG); task (one of TASKS); object (ObjectConfig); release
-    (ReleaseConfig or None); landing_target (3,) object centre at landing [m] or None; place:
+    (ReleaseConfig or None); landing_target (3,) object centre at landing [m] or None;
+    release_orientation (3,) roll, pitch, yaw [deg] of the object at release, world frame (toss
+    tasks; None: the object keeps the orientation it was grasped in); place:
     object centre at placing (3,) [m] or None; speeds (Speeds); perturbations (tuple of
     Perturbation, sorted by time); duration [s]; initial_configuration {arm: (7,) [rad]};
     sensors (SensorConfig); randomization (Randomization or None: a template for dual_arm_eval,
@@ -135,6 +137,7 @@ class Scenario:
     initial_configuration: dict
     release: object = None
     landing_target: object = None
+    release_orientation: object = None
     place: object = None
     perturbations: tuple = ()
     sensors: SensorConfig = field(default_factory=SensorConfig)
@@ -155,6 +158,13 @@ class Scenario:
             raise ConfigError('give either release or landing_target, not both')
         if self.task in PLACE_TASKS and self.place is None:
             raise ConfigError(f'task {self.task} needs place')
+        if self.release_orientation is not None:
+            if self.task not in TOSS_TASKS:
+                raise ConfigError(f'release_orientation needs a toss task, got {self.task}')
+            rpy = frozen_vector('release_orientation', self.release_orientation, 3, 'deg')
+            for index, angle in enumerate(rpy):
+                check_range(f'release_orientation[{index}]', angle, -180.0, 180.0, 'deg')
+            object.__setattr__(self, 'release_orientation', rpy)
         if set(self.initial_configuration) != set(ARMS):
             raise ConfigError(f'initial_configuration needs the arms {ARMS}')
         if self.randomization is not None and not isinstance(self.randomization,
@@ -245,7 +255,7 @@ def load_scenario(path, cell=None, catalogue_path=None):
     reader = ScenarioReader(path)
     data = load_yaml(path)
     reader.check_keys(data, ('name', 'seed', 'task', 'object', 'release', 'landing_target',
-                             'place', 'speeds', 'perturbations', 'duration',
+                             'release_orientation', 'place', 'speeds', 'perturbations', 'duration',
                              'initial_configuration', 'sensors', 'randomization'), '')
     name = require(data, 'name', path, str)
     seed = require(data, 'seed', path, int)
@@ -306,6 +316,8 @@ def load_scenario(path, cell=None, catalogue_path=None):
         '', Scenario, name=name, seed=seed, task=task, object=object_config, speeds=speeds,
         duration=duration, initial_configuration=_initial_configuration(reader, data, cell),
         release=release, landing_target=landing_target, place=place,
+        release_orientation=(reader.vector(data, 'release_orientation', (3,), '', 'deg')
+                             if 'release_orientation' in data else None),
         perturbations=tuple(sorted(perturbations, key=lambda item: item.time)),
         sensors=read_sensor_config(reader, data),
         randomization=read_randomization(reader, data, catalogue_path),
@@ -335,6 +347,8 @@ def scenario_document(scenario):
                                'velocity': numbers(scenario.release.velocity)}
     if scenario.landing_target is not None:
         document['landing_target'] = numbers(scenario.landing_target)
+    if scenario.release_orientation is not None:
+        document['release_orientation'] = numbers(scenario.release_orientation)
     if scenario.place is not None:
         document['place'] = {'position': numbers(scenario.place)}
     document['speeds'] = {item.name: float(getattr(scenario.speeds, item.name))

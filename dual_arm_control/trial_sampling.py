@@ -19,7 +19,7 @@ TRIAL_DRAWS = ('object_x', 'object_y', 'object_yaw', 'mass', 'size_scale', 'fric
                'mocap_noise')
 # Draws added later come from a second generator, so the first one's draws (and the trial's
 # noise seed) stay those of the files written before them.
-LATER_DRAWS = ('object_type', 'mocap_latency')
+LATER_DRAWS = ('object_type', 'mocap_latency', 'release_yaw')
 
 
 def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
@@ -33,7 +33,8 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
     second, SeedSequence([seed, trial_index, 1]), draws LATER_DRAWS. A drawn object type
     replaces the box's size, mass and friction by its catalogue values before the ranges apply.
     The box rests on the surface below its drawn position as the scenario's did; resting
-    targets (landing_target, place) follow its height. The trial has no randomization and no
+    targets (landing_target, place) follow its height; a drawn release_yaw sets the yaw of the
+    release orientation. The trial has no randomization and no
     path.
     """
     if isinstance(trial_index, bool) or not isinstance(trial_index, int) or trial_index < 0:
@@ -76,6 +77,11 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
     mocap = replace(mocap, position_noise=from_range('mocap_noise', mocap.position_noise),
                     latency=from_range('mocap_latency', mocap.latency))
 
+    release_orientation = scenario.release_orientation
+    if spec.release_yaw is not None:
+        roll, pitch, _ = (0.0, 0.0, 0.0) if release_orientation is None else release_orientation
+        release_orientation = (roll, pitch, from_range('release_yaw', 0.0))
+
     def raised(position):
         if position is None:
             return None
@@ -85,5 +91,6 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
 
     return replace(scenario, seed=trial_seed, object=trial_object,
                    landing_target=raised(scenario.landing_target), place=raised(scenario.place),
+                   release_orientation=release_orientation,
                    sensors=replace(scenario.sensors, mocap=mocap), randomization=None,
                    path=None)

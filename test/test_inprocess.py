@@ -1,8 +1,10 @@
 """
-The whole pipeline in one process: the paper's toss, reruns, a gravity-compensated robot.
+The whole pipeline in one process: the paper's toss, a turned box, reruns, gravity compensation.
 
 The gravity-compensated torque interface is KUKA's FRI torque mode: the robot adds g(q).
 """
+
+from dataclasses import replace
 
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import episode_metrics
@@ -33,6 +35,20 @@ def test_paper_toss_in_process(cell, torque_interface):
     assert metrics['release_direction_error'] <= 3.0
     assert metrics['landing_prediction_error'] <= 0.01
     assert metrics['success']
+
+
+def test_the_box_leaves_the_hands_in_the_requested_orientation(cell):
+    """paper_toss_oriented: the arms turn the box 20 deg in yaw while carrying it (eq. 8)."""
+    scenario = load_scenario(scenario_path('paper_toss_oriented'), cell=cell)
+    oriented = episode_metrics(scenario, run_episode(scenario, cell=cell).trajectory, cell)
+    assert oriented['release_orientation_error'] <= 5.0
+    assert oriented['release_position_error'] <= 0.02
+    assert abs(oriented['release_speed_error']) <= 0.05
+    assert oriented['max_slip'] <= 0.01
+    assert oriented['success']
+    unturned = replace(scenario, release_orientation=None)
+    kept = run_episode(unturned, cell=cell).trajectory
+    assert episode_metrics(scenario, kept, cell)['release_orientation_error'] >= 15.0
 
 
 def test_reruns_are_bit_identical(cell):

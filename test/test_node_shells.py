@@ -25,9 +25,10 @@ from dual_arm_control.nodes.messages import (arm_command_message, arm_command_of
 from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
 from dual_arm_control.nodes.passive_controller import PassiveControllerNode
 from dual_arm_control.nodes.wrench_qp import WrenchQPNode
+from dual_arm_control.runtime.configuration import planned_release, predicted_landing
 from dual_arm_control.runtime.signals import ArmCommandSample
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
-from dual_arm_control.scenario import scenario_path
+from dual_arm_control.scenario import load_scenario, scenario_path
 from graph_helpers import GraphProbe
 import numpy as np
 import pytest
@@ -755,3 +756,26 @@ def test_a_landing_target_on_the_topic_replans_the_release_and_a_bad_one_is_coun
     assert motion_generator.spin_until(
         lambda: step.refusals.counts.get('landing_target', 0) == 2)
     assert step.pending_config.toss == planned
+
+
+def test_the_landing_target_parameter_replans_the_release_or_says_why_not(motion_generator):
+    """Default: where paper_toss lands; a new point re-plans, one out of reach is refused."""
+    node = motion_generator.node
+    step = node.step
+    scenario = load_scenario(scenario_path('paper_toss'), cell=CELL)
+    default = node.get_parameter('landing_target').value
+    expected = predicted_landing(*planned_release(scenario, CELL), scenario.object.size[2], CELL)
+    np.testing.assert_allclose(default, expected, atol=1e-12)
+    nominal = step.pending_config.toss
+    [result] = node.set_parameters([Parameter('landing_target', value=[0.95, -0.15, 0.25])])
+    assert result.successful, result.reason
+    planned = step.pending_config.toss
+    assert planned != nominal
+    landing = landing_without_drag(np.asarray(planned.release_position),
+                                   planned.toss_speed * np.asarray(planned.release_direction),
+                                   0.25)
+    np.testing.assert_allclose(landing.position[:2], [0.95, -0.15], atol=1e-6)
+    [result] = node.set_parameters([Parameter('landing_target', value=[1.6, 0.0, 0.25])])
+    assert not result.successful and 'max_release_speed' in result.reason
+    assert step.pending_config.toss == planned
+    assert list(node.get_parameter('landing_target').value) == [0.95, -0.15, 0.25]

@@ -20,9 +20,11 @@ from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry, ImpactConfig
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
-                                                lift_velocity, LiftConfig, place_velocity,
-                                                PlaceConfig, release_velocity, toss_geometry,
-                                                toss_velocity, TossConfig)
+                                                desired_relative_velocity, lift_velocity,
+                                                LiftConfig, object_angular_velocity,
+                                                object_orientation_ds, place_velocity,
+                                                PlaceConfig, release_rotation, release_velocity,
+                                                toss_geometry, toss_velocity, TossConfig)
 from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_coupling,
                                                orientation_ds_angular_velocity,
@@ -164,19 +166,14 @@ class DualArmMotionGenerator:
     """Stateful motion generator: call step() once per DS tick with dt in seconds."""
 
     def __init__(self, config):
-        self._config = config
         self._phase_machine = PhaseMachine(config.phases, config.task)
         self._ft = {arm: FtBiasEstimator(config.ft) for arm in ARMS}
         self._contact = {arm: ContactDetector(config.contact) for arm in ARMS}
         self._reach_speed = SpeedFilter(config.speed.time_constant)
         self._object_speed = SpeedFilter(config.toss_speed_time_constant)
-        self._toss_feedback = _toss_feedback(config.toss)
-        self._standby_positions = np.asarray(config.standby_positions, dtype=float)
-        self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
-        self._toss_geometry = toss_geometry(config.toss, config.coordination)
-        self._release_velocity = release_velocity(config.toss)
         self._release_object_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
+        self.reconfigure(config)
 
     @property
     def config(self):
@@ -204,6 +201,9 @@ class DualArmMotionGenerator:
         self._phase_machine.select_task(config.task)
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
+        self._release_rotation = release_rotation(config.toss)
+        self._object_orientation_ds = object_orientation_ds(
+            config.toss, config.orientation.max_angular_speed)
         self._standby_positions = np.asarray(config.standby_positions, dtype=float)
         self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
 
@@ -245,13 +245,14 @@ class DualArmMotionGenerator:
         if phase_output.transition is not None and phase is Phase.REACH:
             self._reach_speed.reset(0.0)
         object_velocity = self._object_velocity(p_object, v_object, phase, dt)
+        omega_object = self._object_angular_velocity(R_object, phase)
         directions = impact_directions(config, frames, object_velocity,
                                        support_height_below(config, p_object))
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
             commands = yield_to_single_contact(commands, contacts, frames)
         elif phase in (Phase.CONTACT, Phase.MANIPULATE):
-            commands = self._carry(p_tools, R_tools, frames, object_velocity)
+            commands = self._carry(p_tools, R_tools, frames, object_velocity, omega_object)
             self._release_object_velocity = object_velocity
         elif phase is Phase.RELEASE:
             commands = self._open_hands(R_tools, frames)
@@ -260,7 +261,7 @@ class DualArmMotionGenerator:
         toss = config.task in TOSS_TASKS
         return MotionOutput(
             phase=phase_output, commands=commands, object_velocity=object_velocity,
-            object_angular_velocity=np.zeros(3), contacts=contacts, pad_forces=pad_forces,
+            object_angular_velocity=omega_object, contacts=contacts, pad_forces=pad_forces,
             grasp_frames=frames, impact_directions=directions,
             release_position=self._toss_geometry.release_position if toss else None,
             release_velocity=self._release_velocity if toss else None)
@@ -300,6 +301,15 @@ class DualArmMotionGenerator:
             velocity = lift_velocity(p_object, config.lift, config.coordination)
         return saturated_velocity(velocity, speed)
 
+    def _object_angular_velocity(self, R_object, phase):
+        """Return omega^o (3,) [rad/s]: turning toward the release orientation while tossed."""
+        config = self._config
+        if (phase is not Phase.MANIPULATE or config.task not in TOSS_TASKS
+                or not config.toss.orient_object):
+            return np.zeros(3)
+        return object_angular_velocity(R_object, self._release_rotation,
+                                       self._object_orientation_ds)
+
     def _reach(self, p_tools, R_tools, frames, directions, dt):
         """Return the coordinated reach-with-impact commands (eqs. 1-6, Proposition 2)."""
         config = self._config
@@ -330,20 +340,21 @@ class DualArmMotionGenerator:
                 R_target, grasp_points[index])
         return commands
 
-    def _carry(self, p_tools, R_tools, frames, object_velocity):
-        """Return the commands that carry the object with the desired object velocity."""
+    def _carry(self, p_tools, R_tools, frames, object_velocity, omega_object):
+        """Return the commands that carry the object with the desired object twist (eq. 8)."""
         config = self._config
         grasp_points = np.array([frames[arm].p_world_grasp for arm in ARMS])
         velocity = cooperative_manipulation_velocity(
-            p_tools.reshape(6), object_velocity, np.zeros(3), grasp_points,
+            p_tools.reshape(6), object_velocity,
+            desired_relative_velocity(grasp_points, omega_object), grasp_points,
             config.coordination).reshape(2, 3)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         commands = {}
         for index, arm in enumerate(ARMS):
             R_target = frames[arm].R_world_grasp
             commands[arm] = ArmCommand(
-                velocity[index],
-                orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
+                velocity[index], omega_object
+                + orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, grasp_points[index])
         return commands
 

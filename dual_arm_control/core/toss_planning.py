@@ -139,12 +139,14 @@ def _elevations(r, z, speed, gravity, config):
     Return the elevation [rad] (n,) of the flatter throw at speed within the limits, else NaN.
 
     tan(theta) solves a T^2 - r T + (z + a) = 0 with a = g r^2 / (2 v^2); the steeper root is
-    used where the flatter one is below min_elevation_deg.
+    used where the flatter one is below min_elevation_deg. A candidate right above the target
+    (r = 0) has no elevation: NaN, not a division warning.
     """
     a = gravity * r ** 2 / (2.0 * speed ** 2)
     root = np.sqrt(np.maximum(r ** 2 - 4.0 * a * (z + a), 0.0))
-    low = np.degrees(np.arctan((r - root) / (2.0 * a)))
-    high = np.degrees(np.arctan((r + root) / (2.0 * a)))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        low = np.degrees(np.arctan((r - root) / (2.0 * a)))
+        high = np.degrees(np.arctan((r + root) / (2.0 * a)))
     chosen = np.where(low >= config.min_elevation_deg, low, high)
     valid = (chosen >= config.min_elevation_deg) & (chosen <= config.max_elevation_deg)
     return np.where(valid, np.radians(chosen), np.nan)

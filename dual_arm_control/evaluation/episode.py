@@ -10,6 +10,7 @@ from pathlib import Path
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.approach import (impact_directions, object_motion_direction,
                                             support_height_below)
+from dual_arm_control.core.geometry import rpy_to_matrix
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
@@ -24,7 +25,7 @@ METRIC_KEYS = (
     'success', 't_contact_left', 't_contact_right', 'contact_time_gap', 'impact_speed_left',
     'impact_speed_right', 't_release', 'release_position', 'release_position_error',
     'release_velocity', 'release_velocity_error', 'release_speed_error',
-    'release_direction_error', 'landing_position', 'landing_error',
+    'release_direction_error', 'release_orientation_error', 'landing_position', 'landing_error',
     'cycle_time', 'place_position_error', 'energy_left', 'energy_right', 'max_slip',
     'torque_clamp_count', 'refused_message_count', 'arm_collision_count', 'box_tilt_at_place',
 )
@@ -33,6 +34,7 @@ METRIC_KEYS = (
 CONTACT_GAP_LIMIT = 0.010
 RELEASE_POSITION_LIMIT = 0.03
 RELEASE_VELOCITY_LIMIT = 0.10
+RELEASE_ORIENTATION_LIMIT = 5.0
 LANDING_LIMIT = 0.05
 PLACE_LIMIT = 0.03
 PLACE_SPEED_LIMIT = 0.1
@@ -108,6 +110,10 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
             result['release_speed_error'] = metrics.relative_speed_error(v_release, planned[1])
             result['release_direction_error'] = metrics.direction_error_degrees(
                 v_release, planned[1])
+        if scenario.release_orientation is not None:
+            result['release_orientation_error'] = metrics.rotation_error_degrees(
+                data['object_quat_xyzw'][release],
+                rpy_to_matrix(np.radians(scenario.release_orientation)))
         height = scenario.object.size[2]
         landed = metrics.landing_index(t, data['object_position'], release + 1, 0.5 * height,
                                        cell.surface_height)
@@ -163,7 +169,9 @@ def _success(scenario, result):
                 and result['release_position_error'] <= RELEASE_POSITION_LIMIT
                 and result['release_velocity_error'] <= RELEASE_VELOCITY_LIMIT
                 and result['landing_error'] is not None
-                and result['landing_error'] <= LANDING_LIMIT)
+                and result['landing_error'] <= LANDING_LIMIT
+                and (scenario.release_orientation is None
+                     or result['release_orientation_error'] <= RELEASE_ORIENTATION_LIMIT))
     if scenario.task in PLACE_TASKS:
         return (grasped and result['place_position_error'] is not None
                 and result['place_position_error'] <= PLACE_LIMIT
@@ -210,7 +218,8 @@ SUMMARY_FIELDS = (('contact_time_gap', 'contact gap', 1e3, 'ms'),
                   ('impact_speed_right', 'impact right', 1.0, 'm/s'),
                   ('max_slip', 'slip', 1e3, 'mm'),
                   ('release_position_error', 'release error', 1e3, 'mm'),
-                  ('release_velocity_error', 'release speed error', 100.0, '%'),
+                  ('release_velocity_error', 'release velocity error', 100.0, '%'),
+                  ('release_orientation_error', 'release orientation error', 1.0, 'deg'),
                   ('landing_error', 'landing error', 1e3, 'mm'),
                   ('place_position_error', 'place error', 1e3, 'mm'),
                   ('cycle_time', 'cycle time', 1.0, 's'))

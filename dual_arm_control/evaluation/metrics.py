@@ -8,7 +8,7 @@ trajectories.
 
 from dataclasses import dataclass
 
-from dual_arm_control.core.geometry import quat_xyzw_to_matrix
+from dual_arm_control.core.geometry import quat_xyzw_to_matrix, rotation_log
 from dual_arm_control.core.validation import check_range
 import numpy as np
 
@@ -179,3 +179,9 @@ def tilt_degrees(object_quat_xyzw):
     """Return the angle [deg] between the object's z axis and the world's vertical."""
     z_axis = quat_xyzw_to_matrix(object_quat_xyzw)[:, 2]
     return float(np.degrees(np.arccos(np.clip(z_axis[2], -1.0, 1.0))))
+
+
+def rotation_error_degrees(object_quat_xyzw, R_world_desired):
+    """Return the angle [deg] of the rotation from R_world_desired to the object's orientation."""
+    R_world_object = quat_xyzw_to_matrix(object_quat_xyzw)
+    return float(np.degrees(np.linalg.norm(rotation_log(R_world_object @ R_world_desired.T))))

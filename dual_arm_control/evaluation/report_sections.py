@@ -290,11 +290,12 @@ def robustness_section(results, link_root):
     return out
 
 
-# dual_arm_eval batches over the whole object catalogue (config/scenarios/catalogue_random*.yaml).
-CATALOGUE_FOLDERS = ('robustness_catalogue', 'robustness_catalogue_place')
+# More dual_arm_eval batches: the whole object catalogue (config/scenarios/catalogue_random*.yaml)
+# and a box turned while carried (paper_toss_oriented_random.yaml).
+CATALOGUE_FOLDERS = ('robustness_catalogue', 'robustness_catalogue_place', 'robustness_oriented')
 CATALOGUE_METRICS = ('contact_time_gap', 'max_slip', 'impact_speed_left', 'impact_speed_right',
-                     'arm_collision_count', 'release_position_error', 'landing_error',
-                     'place_position_error', 'box_tilt_at_place')
+                     'arm_collision_count', 'release_position_error', 'release_orientation_error',
+                     'landing_error', 'place_position_error', 'box_tilt_at_place')
 
 
 def failure_modes(failures):
@@ -312,8 +313,8 @@ def failure_modes(failures):
 
 
 def catalogue_section(results, link_root):
-    """Experiment 4b (dual_arm_eval): every catalogue box, placed and yawed at random."""
-    out = ['## 4b. Robustness over the object catalogue (dual_arm_eval)', '']
+    """Experiment 4b (dual_arm_eval): every catalogue box at random poses; a turned box."""
+    out = ['## 4b. Robustness over the object catalogue and a turned box (dual_arm_eval)', '']
     for folder in CATALOGUE_FOLDERS:
         summary, plots = results.get('catalogue', {}).get(folder, (None, []))
         if summary is None:

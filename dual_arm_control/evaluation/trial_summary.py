@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, LANDING_LIMIT, PLACE_LIMIT,
                                                  PLACE_SPEED_LIMIT, PLACE_TILT_LIMIT,
+                                                 RELEASE_ORIENTATION_LIMIT,
                                                  RELEASE_POSITION_LIMIT, RELEASE_VELOCITY_LIMIT,
                                                  SLIP_LIMIT)
 from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
@@ -98,7 +99,8 @@ def failure_reason(task, metrics):
     if task in TOSS_TASKS:
         checks += [('release_position_error', RELEASE_POSITION_LIMIT, 'm'),
                    ('release_velocity_error', RELEASE_VELOCITY_LIMIT, ''),
-                   ('landing_error', LANDING_LIMIT, 'm')]
+                   ('landing_error', LANDING_LIMIT, 'm'),
+                   ('release_orientation_error', RELEASE_ORIENTATION_LIMIT, 'deg')]
         if metrics.get('t_grasp') is not None and metrics.get('t_release') is None:
             reasons.append('no release')
         elif metrics.get('t_release') is not None and metrics.get('landing_error') is None:

@@ -7,9 +7,10 @@ stamped with the tick, per-arm DS commands, the desired object twist, the phase 
 MARKER_PERIOD) markers. With `lockstep` a tick waits for both arms' joint states and F/T readings
 and the tracker's estimate, all stamped with it (other cycles only advance the schedule); in
 realtime each left joint state triggers a cycle with the newest of the others (take-latest).
-Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start time and
-rates. Services start an episode, send the arms home and reset. A point on /dual_arm/landing_target
-(frame world) re-plans the toss's release state for it, or is refused with the reason.
+Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start time,
+landing target and rates. Services start an episode, send the arms home and reset. A new
+landing_target, set as a parameter or as a point on /dual_arm/landing_target (frame world),
+re-plans the toss's release state for it, or is refused with the reason.
 """
 
 import sys
@@ -26,7 +27,8 @@ from dual_arm_control.nodes.messages import (arm_command_message, fill_twist, jo
                                              stamp_ns, time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import ConfigParameters, NodeParameters
-from dual_arm_control.runtime.configuration import motion_config_for_scenario
+from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
+                                                    planned_release, predicted_landing)
 from dual_arm_control.runtime.inputs import ArrivalBarrier
 from dual_arm_control.runtime.motion_step import MotionGeneratorStep
 from dual_arm_control.runtime.node_settings import node_table
@@ -34,6 +36,7 @@ from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.scenario import load_scenario
 import numpy as np
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
 
 MARKER_PERIOD = 0.05
@@ -50,11 +53,15 @@ class DsMotionGenerator(Node):
     def __init__(self, node_name='ds_motion_generator', **node_options):
         super().__init__(node_name, **node_options)
         cell = load_cell()
-        settings = NodeParameters(self, node_table('ds_motion_generator').settings)
+        self._scenario = None
+        settings = NodeParameters(
+            self, node_table('ds_motion_generator').settings,
+            defaults=lambda values: self._scenario_defaults(values, cell),
+            extra_problem=self._landing_target_problem, on_change=self._on_setting)
+        self._landing_target = np.asarray(settings['landing_target'], dtype=float)
         base = MotionGeneratorConfig()
-        if settings['scenario']:
-            base = motion_config_for_scenario(load_scenario(settings['scenario'], cell=cell),
-                                              cell)
+        if self._scenario is not None:
+            base = motion_config_for_scenario(self._scenario, cell)
         parameters = ConfigParameters(self, base, self._on_config)
         self.step = MotionGeneratorStep(
             parameters.config, {arm: arm_model(arm, cell) for arm in ARMS},
@@ -114,6 +121,36 @@ class DsMotionGenerator(Node):
     def _on_config(self, config):
         self.step.reconfigure(config)
 
+    def _scenario_defaults(self, values, cell):
+        """Return the defaults the scenario gives: where its toss lands."""
+        if not values.get('scenario'):
+            return {}
+        if self._scenario is None:
+            self._scenario = load_scenario(values['scenario'], cell=cell)
+        if self._scenario.landing_target is not None:
+            return {'landing_target': [float(v) for v in self._scenario.landing_target]}
+        planned = planned_release(self._scenario, cell)
+        if planned is None:
+            return {}
+        landing = predicted_landing(*planned, self._scenario.object.size[2], cell)
+        return {'landing_target': [float(v) for v in landing]}
+
+    def _landing_target_problem(self, values):
+        """Re-plan the release for a new landing_target; return why it is refused, or None."""
+        target = np.asarray(values['landing_target'], dtype=float)
+        if getattr(self, 'step', None) is None or np.array_equal(target, self._landing_target):
+            return None
+        return self.step.set_landing_target(target) or None
+
+    def _on_setting(self, name, value):
+        if name != 'landing_target':
+            return
+        self._landing_target = np.asarray(value, dtype=float)
+        toss = self.step.pending_config.toss
+        self.get_logger().info(
+            f'landing target {np.round(self._landing_target, 3).tolist()} m: release at '
+            f'{np.round(toss.release_position, 3).tolist()} m, {toss.toss_speed:.2f} m/s')
+
     def _on_landing_target(self, msg):
         target = np.array([msg.point.x, msg.point.y, msg.point.z])
         if msg.header.frame_id not in ('', contract.WORLD_FRAME) or not np.all(
@@ -123,11 +160,7 @@ class DsMotionGenerator(Node):
                 f'{msg.header.frame_id!r} refused: finite coordinates in '
                 f'{contract.WORLD_FRAME!r} expected')
             return
-        if not self.step.set_landing_target(target):
-            toss = self.step.pending_config.toss
-            self.get_logger().info(
-                f'landing target {np.round(target, 3).tolist()} m: release at '
-                f'{np.round(toss.release_position, 3).tolist()} m, {toss.toss_speed:.2f} m/s')
+        self.set_parameters([Parameter('landing_target', value=target.tolist())])
 
     def _on_command(self, command, response):
         self.step.request(command)

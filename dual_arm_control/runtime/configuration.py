@@ -31,6 +31,9 @@ def motion_config_for_scenario(scenario, cell, base=None):
         toss = replace(toss, release_position=tuple(scenario.release.position),
                        release_direction=tuple(velocity), toss_speed=float(
                            np.linalg.norm(velocity)))
+    if scenario.release_orientation is not None:
+        toss = replace(toss, orient_object=True,
+                       release_rpy_deg=tuple(float(v) for v in scenario.release_orientation))
     config = replace(config, toss=toss)
     if scenario.landing_target is not None:
         config = config_for_landing_target(config, scenario.landing_target)

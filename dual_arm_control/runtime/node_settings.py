@@ -32,6 +32,8 @@ MAX_DURATION = 1.0e6
 MAX_OBJECT_DISPLACEMENT = 2.0
 OBJECT_MASS_RANGE = (1e-3, 100.0)
 MAX_OBJECT_EDGE = 2.0
+MAX_WORKSPACE = 5.0
+"""Bound of every world coordinate a parameter may give [m]: the cell is a few metres wide."""
 
 DIAGNOSTICS_PERIOD = Setting(
     'diagnostics_period', 1.0, 'sim time between two /diagnostics messages of the node', 's',
@@ -121,6 +123,11 @@ NODE_TABLES = {
         Setting('auto_start_time', 0.0, 'sim time at which an episode starts by itself (after '
                 'the FT tare, once an object estimate arrived); 0 = wait for the start service',
                 's', 0.0, MAX_DURATION, read_only=True),
+        Setting('landing_target', (0.87, 0.0, 0.25), 'landing point of the box centre, world '
+                "frame (toss tasks; default: where the scenario's toss lands): setting it "
+                're-plans the release state for it, as a point on /dual_arm/landing_target '
+                'does, or is refused with the reason (out of reach, or after the release)',
+                'm', -MAX_WORKSPACE, MAX_WORKSPACE),
         DS_PERIOD_SETTING, LOCKSTEP, DIAGNOSTICS_PERIOD), MotionGeneratorConfig),
     'wrench_qp': NodeTable((
         SCENARIO,
