@@ -107,7 +107,7 @@ def test_rotating_object_carries_the_hands_consistently():
 
 def test_the_carried_object_turns_to_its_release_orientation():
     """omega^o of eq. 8 from the orientation DS: it turns the object about the error's axis."""
-    toss = TossConfig(orient_object=True, release_rpy_deg=(0.0, 0.0, 20.0), orientation_rate=10.0)
+    toss = TossConfig(orientation='given', release_rpy_deg=(0.0, 0.0, 20.0), orientation_rate=10.0)
     R_desired = release_rotation(toss)
     np.testing.assert_allclose(R_desired, rpy_to_matrix((0.0, 0.0, math.radians(20.0))))
     dynamics = object_orientation_ds(toss, max_angular_speed=3.0)

@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 from dual_arm_control.core.cooperative import absolute_relative, left_right
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.geometry import cross3, rpy_to_matrix, unit
+from dual_arm_control.core.geometry import cross3, matrix_to_rpy, rpy_to_matrix, unit
 from dual_arm_control.core.modulation import (
     activation_distances, activations, modulated_velocity, modulation_bases,
     ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
@@ -20,6 +20,9 @@ from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import saturated_velocity, speed_blend_weight
 from dual_arm_control.core.validation import check_range, check_vector, finite_array
 import numpy as np
+
+ORIENTATION_MODES = ('free', 'given', 'level')
+"""How the toss orients the carried object (TossConfig.orientation)."""
 
 _TOSS_REGION = ModulationRegionConfig(
     transitory_distance=0.14, radial_distance=0.30, normal_distance=0.04,
@@ -60,9 +63,12 @@ class TossConfig:
     speed_correction_limit: float = setting(
         0.25, "The speed loop's correction is capped to this fraction of the desired speed.",
         low=0, high=1.0)
-    orient_object: bool = setting(
-        False, 'Turn the carried object toward release_rpy_deg before the release (the rotation '
-        'term of eq. 8); false: the object keeps the orientation it was grasped in.')
+    orientation: str = setting(
+        'free', "The carried object's orientation (the rotation term of eq. 8): free leaves it "
+        'as the grasp holds it; given turns it to release_rpy_deg; level keeps it upright at '
+        'its current yaw, so that a heavy box tipped by the impact or its inertia leaves the '
+        'hands without spinning (it can also shake a box out of a grasp that barely holds: '
+        'see the README).', choices=ORIENTATION_MODES)
     release_rpy_deg: tuple = setting(
         (0.0, 0.0, 0.0), 'Desired orientation of the object at release, world frame: roll, '
         'pitch, yaw (URDF convention, R = Rz Ry Rx).', unit='deg', low=-180.0, high=180.0,
@@ -167,6 +173,11 @@ def toss_geometry(config, coordination):
 def release_rotation(config):
     """Return the desired object orientation at release R (3, 3) of a TossConfig, world frame."""
     return rpy_to_matrix(np.radians(np.asarray(config.release_rpy_deg, dtype=float)))
+
+
+def level_rotation(R_world_object):
+    """Return the upright orientation (3, 3) with the yaw of R_world_object: roll, pitch zero."""
+    return rpy_to_matrix((0.0, 0.0, matrix_to_rpy(R_world_object)[2]))
 
 
 def object_orientation_ds(config, max_angular_speed):

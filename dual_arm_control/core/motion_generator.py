@@ -20,11 +20,12 @@ from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry, ImpactConfig
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
-                                                desired_relative_velocity, lift_velocity,
-                                                LiftConfig, object_angular_velocity,
-                                                object_orientation_ds, place_velocity,
-                                                PlaceConfig, release_rotation, release_velocity,
-                                                toss_geometry, toss_velocity, TossConfig)
+                                                desired_relative_velocity, level_rotation,
+                                                lift_velocity, LiftConfig,
+                                                object_angular_velocity, object_orientation_ds,
+                                                place_velocity, PlaceConfig, release_rotation,
+                                                release_velocity, toss_geometry, toss_velocity,
+                                                TossConfig)
 from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_coupling,
                                                orientation_ds_angular_velocity,
@@ -302,13 +303,13 @@ class DualArmMotionGenerator:
         return saturated_velocity(velocity, speed)
 
     def _object_angular_velocity(self, R_object, phase):
-        """Return omega^o (3,) [rad/s]: turning toward the release orientation while tossed."""
+        """Return omega^o (3,) [rad/s]: the object's orientation while tossed (eq. 8)."""
         config = self._config
-        if (phase is not Phase.MANIPULATE or config.task not in TOSS_TASKS
-                or not config.toss.orient_object):
+        mode = config.toss.orientation
+        if phase is not Phase.MANIPULATE or config.task not in TOSS_TASKS or mode == 'free':
             return np.zeros(3)
-        return object_angular_velocity(R_object, self._release_rotation,
-                                       self._object_orientation_ds)
+        target = self._release_rotation if mode == 'given' else level_rotation(R_object)
+        return object_angular_velocity(R_object, target, self._object_orientation_ds)
 
     def _reach(self, p_tools, R_tools, frames, directions, dt):
         """Return the coordinated reach-with-impact commands (eqs. 1-6, Proposition 2)."""

@@ -32,7 +32,7 @@ def motion_config_for_scenario(scenario, cell, base=None):
                        release_direction=tuple(velocity), toss_speed=float(
                            np.linalg.norm(velocity)))
     if scenario.release_orientation is not None:
-        toss = replace(toss, orient_object=True,
+        toss = replace(toss, orientation='given',
                        release_rpy_deg=tuple(float(v) for v in scenario.release_orientation))
     config = replace(config, toss=toss)
     if scenario.landing_target is not None:
