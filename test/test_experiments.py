@@ -268,7 +268,8 @@ def test_report_renders_the_numbers_from_the_json_files(tmp_path):
     assert '| 26.5 % (12.3 %; 21.0 %) | 24 % |' in headline
     assert '92.5 % of 40' in headline
     # Experiments without results are reported as not run, in the table and the sections.
-    assert '| workspace extension by tossing (exp. 2) | — | >= 20 % |' in headline
+    assert ('| workspace extension by tossing (exp. 2): all landings (only tosses on target) | — '
+            '| >= 20 % |') in headline
     assert 'Not run: `toss_workspace/results.json` is missing' in text
     assert 'Not run: `toss_to_target/results.json` is missing' in text
     assert '](results/fast_toss/fig6_tool_speeds.png)' in text
@@ -304,3 +305,23 @@ def test_one_toss_to_target_run_writes_results_and_plot(tmp_path):
     # The issue's bound on the median landing error over the grid, for its first target.
     assert 0.0 < row['landing_error'] < 0.02
     assert (tmp_path / 'landing_errors.png').stat().st_size > 10000
+
+
+def test_the_served_region_corners_are_served_and_nothing_beyond_them_is():
+    """Each corner is a target the planner serves; 6 cm farther out from the centre it is not."""
+    cell = load_cell()
+    size = (0.2, 0.2, 0.2)
+    planning = ReleasePlanningConfig()
+    corners = experiment_metrics.served_region_corners(cell, size, planning, 0.02)
+    assert len(corners) >= 6
+    centre = corners[:, :2].mean(axis=0)
+    for corner in corners:
+        served, _ = experiment_metrics.landing_targets(cell, size, [corner[0]], [corner[1]],
+                                                       planning)
+        assert len(served) == 1
+        outward = corner[:2] + 0.06 * (corner[:2] - centre) / np.linalg.norm(corner[:2] - centre)
+        beyond, _ = experiment_metrics.landing_targets(cell, size, [outward[0]], [outward[1]],
+                                                       planning)
+        assert len(beyond) == 0, corner
+    hull_area = workspace.polygon_area(corners[:, :2])
+    assert 0.25 <= hull_area <= 0.4  # the 1.3 m/s, 60 deg planner: 0.30 m^2 on this table

@@ -12,6 +12,7 @@ from dual_arm_control.core.ballistics import (centre_landing_height, STANDARD_GR
 from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.toss_planning import plan_release
 from dual_arm_control.evaluation.metrics import joint_power, mechanical_energy, time_integral
+from dual_arm_control.evaluation.workspace import convex_hull
 import numpy as np
 
 
@@ -86,6 +87,25 @@ def landing_targets(cell, object_size, xs, ys, planning):
                 continue
             targets.append(target)
     return np.array(targets).reshape(-1, 3), refused
+
+
+def served_region_corners(cell, object_size, planning, step):
+    """
+    Return the corners (M, 3) [m] of the landing region the release planner serves.
+
+    The planner is asked for every point of a step-spaced grid over the front table
+    (landing_targets); the corners are the convex hull of the served points, at the resting
+    height. Tossing to them measures the region's extent instead of a coarse grid's.
+    """
+    table = cell.front_table
+    low, high = table.center[:2] - 0.5 * table.size[:2], table.center[:2] + 0.5 * table.size[:2]
+    xs = np.arange(low[0], high[0] + 1e-9, step)
+    ys = np.arange(low[1], high[1] + 1e-9, step)
+    served, _ = landing_targets(cell, object_size, xs, ys, planning)
+    if len(served) < 3:
+        return served
+    corners = convex_hull(served[:, :2])
+    return np.column_stack((corners, np.full(len(corners), served[0, 2])))
 
 
 def longest_toss(speed, drop, gravity=STANDARD_GRAVITY):

@@ -24,7 +24,7 @@ from dual_arm_control.evaluation import metrics as episode_tools
 from dual_arm_control.evaluation import workspace
 from dual_arm_control.evaluation.episode import LANDING_LIMIT
 from dual_arm_control.evaluation.experiment_metrics import (landing_targets, longest_toss,
-                                                            statistics)
+                                                            served_region_corners, statistics)
 from dual_arm_control.evaluation.experiment_runs import (ExperimentError, results_header,
                                                          run_inprocess_episode, write_results)
 from dual_arm_control.graph import EPISODE_START_TIME
@@ -36,6 +36,8 @@ import numpy as np
 # Experiment 2: tosses planned for landing targets over a wide grid, and the workspace model.
 WORKSPACE_TARGET_X = (0.75, 0.85, 0.95, 1.05, 1.15)
 WORKSPACE_TARGET_Y = (-0.45, -0.30, -0.15, 0.0, 0.15, 0.30, 0.45)
+# The corners of the region the planner serves, from a grid this fine [m], are tossed to as well.
+WORKSPACE_CORNER_STEP = 0.02
 WORKSPACE_SAMPLES = 2000000
 WORKSPACE_SEED = 7
 WORKSPACE_GRID = workspace.Grid(x0=0.0, y0=-1.0, cell=0.025, nx=56, ny=80)
@@ -139,8 +141,11 @@ def run_toss_workspace(out_dir, limit=None):
     cell = load_cell()
     base = load_scenario('paper_toss', cell=cell)
     tosses, flights, landings = [], [], []
-    targets, _ = landing_targets(cell, base.object.size, WORKSPACE_TARGET_X, WORKSPACE_TARGET_Y,
-                                 MotionGeneratorConfig().release_planning)
+    planning = MotionGeneratorConfig().release_planning
+    grid_targets, _ = landing_targets(cell, base.object.size, WORKSPACE_TARGET_X,
+                                      WORKSPACE_TARGET_Y, planning)
+    corners = served_region_corners(cell, base.object.size, planning, WORKSPACE_CORNER_STEP)
+    targets = np.vstack((grid_targets, corners))
     for target in targets[:limit]:
         scenario, toss, elevation, heading = _toss_for_target(base, target, cell)
         result, data = run_inprocess_episode(scenario, cell)
@@ -171,6 +176,9 @@ def run_toss_workspace(out_dir, limit=None):
     hull = workspace.convex_hull(np.array(landings)) if landings else np.zeros((0, 2))
     toss_mask = workspace.polygon_mask(hull, grid)
     added, extension = workspace.extension_percent(joint, toss_mask)
+    on_target = [toss['landing_position'][:2] for toss in tosses if toss['success']]
+    _, extension_on_target = workspace.extension_percent(joint, workspace.polygon_mask(
+        workspace.convex_hull(np.array(on_target)), grid)) if len(on_target) >= 3 else (None, 0.0)
     xs, ys = grid.centres()
     centre_row = joint[:, int(np.argmin(np.abs(ys)))]
     release = np.asarray(MotionGeneratorConfig().toss.release_position)
@@ -186,7 +194,9 @@ def run_toss_workspace(out_dir, limit=None):
         'tosses': tosses, 'toss_count': len(tosses), 'valid_count': len(landings),
         'success_count': sum(1 for toss in tosses if toss['success']),
         'release_position': release.tolist(),
-        'target_grid': {'x': list(WORKSPACE_TARGET_X), 'y': list(WORKSPACE_TARGET_Y)},
+        'target_grid': {'x': list(WORKSPACE_TARGET_X), 'y': list(WORKSPACE_TARGET_Y),
+                        'served_region_corners': corners.tolist(),
+                        'corner_grid_step': WORKSPACE_CORNER_STEP},
         'method': {'samples_per_arm': samples, 'seed': WORKSPACE_SEED,
                    'kept_samples': {arm: len(reachable[arm]) for arm in ARMS},
                    'pad_max_tilt_deg': PAD_MAX_TILT_DEG, 'z_band': list(WORKSPACE_Z_BAND),
@@ -198,6 +208,7 @@ def run_toss_workspace(out_dir, limit=None):
         'toss_hull_area': workspace.polygon_area(hull),
         'added_area': workspace.mask_area(added, grid),
         'extension_percent': extension,
+        'extension_percent_on_target': extension_on_target,
         'joint_max_x_at_y0': float(xs[centre_row].max()) if centre_row.any() else None,
         'longest_toss': longest_toss(speeds[-1], drop), 'fastest_toss': speeds[-1],
         'farthest_landing': max((float(np.hypot(*(np.asarray(p) - release[:2])))

@@ -51,8 +51,10 @@ def headline_rows(results):
          f'({number(at_one and at_one["energy_reduction_percent"], 1, unit="%")}; '
          f'{number(at_one and at_one["energy_without_gravity_reduction_percent"], 1, unit="%")})',
          paper('energy_reduction_1ms', 0), PAPER_RESULTS['energy_reduction_1ms']['source']),
-        ('workspace extension by tossing (exp. 2)',
-         number(workspace and workspace['extension_percent'], 1, unit='%'),
+        ('workspace extension by tossing (exp. 2): all landings (only tosses on target)',
+         (f'{number(workspace["extension_percent"], 1, unit="%")} ('
+          f'{number(workspace.get("extension_percent_on_target"), 1, unit="%")})'
+          if workspace else MISSING),
          paper('workspace_extension', 0), PAPER_RESULTS['workspace_extension']['source']),
         ('success rate, robustness trials (exp. 4)',
          (f'{number(robustness["success_rate"], 1, 100.0, "%")} of {robustness["trials"]}'
@@ -124,7 +126,10 @@ def workspace_section(results, link_root):
     out += [
         f'Runner: {ws["runner"]}. {ws["toss_count"]} tosses of the paper cube, each planned by '
         f'the release planner for a landing target of the grid x {grid["x"]} x y {grid["y"]} m '
-        f'on the front table (targets it refuses are left out): release point, direction and '
+        f'on the front table (targets it refuses are left out) and for the '
+        f'{len(grid.get("served_region_corners", []))} corners of the region it serves (the '
+        f'convex hull of the points it serves on a {grid.get("corner_grid_step", 0):g} m grid '
+        f'over the table): release point, direction and '
         f'speed ({min(speeds):.2f}-{max(speeds):.2f} m/s) chosen per target; '
         f'{ws["valid_count"]} were grasped, released and landed on the front table (their '
         f'measured landings are used), {ws["success_count"]} also met every episode '
@@ -164,7 +169,9 @@ def workspace_section(results, link_root):
             ('landing x range / y range', f'{value_range(ws["landing_extent"]["x"])} / '
              f'{value_range(ws["landing_extent"]["y"])} m', MISSING),
             ('extension', number(ws['extension_percent'], 1, unit='%'),
-             paper('workspace_extension', 0))]),
+             paper('workspace_extension', 0)),
+            ('extension by the tosses that met every criterion (landed within 5 cm of their '
+             'target)', number(ws.get('extension_percent_on_target'), 1, unit='%'), MISSING)]),
         '', plot_links(results, 'toss_workspace', link_root), '']
     return out
 
