@@ -1,8 +1,10 @@
 """Speed shaping of the DS outputs ("boosted" fields) and the first-order speed filter."""
 
+from dataclasses import replace
 import math
 
 from dual_arm_control.core.exceptions import ConfigError, InputError
+from dual_arm_control.core.motion_generator import DualArmMotionGenerator, MotionGeneratorConfig
 from dual_arm_control.core.speed_shaping import (
     boosted_coordinated_velocity, boosted_velocity, profile_speed, reach_speed,
     saturated_velocity, speed_blend_weight, SpeedErrorIntegrator, SpeedFilter, SpeedProfileConfig)
@@ -116,3 +118,17 @@ def test_the_speed_loop_is_capped_and_forgets_on_reset():
     assert loop.update(desired, desired, 0.005) == pytest.approx(desired)
     with pytest.raises(ConfigError):
         SpeedErrorIntegrator(integral_gain=-1.0, limit_ratio=0.25)
+
+
+def test_a_live_parameter_change_keeps_the_speed_loop_correction():
+    """Reconfiguring mid-toss (any parameter) takes the new gains, not a zeroed integral."""
+    config = MotionGeneratorConfig()
+    generator = DualArmMotionGenerator(config)
+    loop = generator._toss_feedback
+    loop.update(np.array([1.0, 0.0, 0.0]), np.array([0.8, 0.0, 0.0]), 0.005)
+    integrated = loop.correction
+    assert integrated == pytest.approx(20.0 * 0.005 * 0.2)
+    generator.reconfigure(replace(config, toss=replace(config.toss, speed_integral_gain=40.0),
+                                  max_linear_speed=1.2))
+    assert generator._toss_feedback.correction == integrated
+    assert generator._toss_feedback.integral_gain == 40.0

@@ -172,6 +172,7 @@ class DualArmMotionGenerator:
         self._contact = {arm: ContactDetector(config.contact) for arm in ARMS}
         self._reach_speed = SpeedFilter(config.speed.time_constant)
         self._object_speed = SpeedFilter(config.toss_speed_time_constant)
+        self._toss_feedback = _toss_feedback(config.toss)
         self._release_object_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
         self.reconfigure(config)
@@ -198,7 +199,8 @@ class DualArmMotionGenerator:
     def reconfigure(self, config):
         """Apply a new configuration at the next tick; the phase and filters are kept."""
         self._config = config
-        self._toss_feedback = _toss_feedback(config.toss)
+        self._toss_feedback.integral_gain = config.toss.speed_integral_gain
+        self._toss_feedback.limit_ratio = config.toss.speed_correction_limit
         self._phase_machine.select_task(config.task)
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
