@@ -7,8 +7,8 @@ from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
 from dual_arm_control.core.impact import clearance_limited_direction
 from dual_arm_control.core.motion_generator import MotionGeneratorConfig
-from dual_arm_control.core.reachability import (grasp_candidates, grasp_shifts, PAD_ROLLS,
-                                                plan_grasp, ReachabilityConfig)
+from dual_arm_control.core.reachability import (grasp_candidates, grasp_lift, grasp_shifts,
+                                                PAD_ROLLS, plan_grasp, ReachabilityConfig)
 from dual_arm_control.description.cell import arm_model, load_cell
 import numpy as np
 import pytest
@@ -67,21 +67,39 @@ def test_a_rolled_grasp_frame_keeps_the_face_point_and_normal():
 
 def test_candidates_prefer_the_unrolled_centred_grasp_and_keep_the_pad_on_the_face():
     config = ReachabilityConfig()
+    clearance = 0.02
     for size in ([0.16] * 3, CUBE, [0.26] * 3, [0.2, 0.3, 0.2], [0.25, 0.19, 0.2]):
-        candidates = grasp_candidates(size, config)
-        assert candidates[0] == (0.0, 0.0)
-        assert [roll for roll, _ in candidates] == sorted(
-            (roll for roll, _ in candidates), key=PAD_ROLLS.index)
+        candidates = grasp_candidates(size, config, clearance)
+        assert candidates[0][0] == 0.0 and not candidates[0][1].any()
+        rolls = [roll for roll, _ in candidates]
+        assert rolls == sorted(rolls, key=PAD_ROLLS.index) and set(rolls) == set(PAD_ROLLS)
         for roll in PAD_ROLLS:
-            shifts = [shift for candidate_roll, shift in candidates if candidate_roll == roll]
-            assert shifts == list(grasp_shifts(size, config, roll))
-            assert shifts[0] == 0.0 and np.all(np.diff(shifts) > 0.0)
-            half_extent, _ = rolled_pad_half_extents(roll, 0.075, 0.05)
-            # The pad overhangs the face's front edge by at most -edge_margin.
-            assert shifts[-1] + half_extent <= 0.5 * size[0] - config.edge_margin + 1e-12
+            offsets = np.array([offset for candidate, offset in candidates if candidate == roll])
+            assert offsets[:, 0].tolist() == list(grasp_shifts(size, config, roll))
+            assert offsets[0, 0] == 0.0 and np.all(np.diff(offsets[:, 0]) > 0.0)
+            half_along, half_across = rolled_pad_half_extents(roll, 0.075, 0.05)
+            # The pad overhangs the face's front and top edges by at most -edge_margin ...
+            assert offsets[-1, 0] + half_along <= 0.5 * size[0] - config.edge_margin + 1e-12
+            assert np.all(offsets[:, 2] + half_across
+                          <= 0.5 * size[2] - config.edge_margin + 1e-12)
+            # ... and its lowest point clears the surface the box rests on.
+            assert np.all(offsets[:, 2] - half_across >= -0.5 * size[2] + clearance - 1e-12)
         # The rolled pad, 0.05 m narrower along the face, shifts 0.025 m farther toward +x.
         assert grasp_shifts(size, config, 0.5 * math.pi)[-1] == pytest.approx(
             grasp_shifts(size, config, 0.0)[-1] + 0.025, abs=1e-12)
+
+
+def test_a_rolled_pad_rises_to_clear_the_support_or_is_left_out():
+    config = ReachabilityConfig()
+    # The unrolled pad reaches 0.05 m down: on every catalogue box it clears 2 cm unraised.
+    assert grasp_lift([0.16] * 3, config, 0.0, 0.02) == 0.0
+    # Rolled it reaches 0.075 m down: on the 0.16 m cube it rises 1.5 cm (0.075 + 0.02 - 0.08).
+    assert grasp_lift([0.16] * 3, config, 0.5 * math.pi, 0.02) == pytest.approx(0.015)
+    assert grasp_lift(CUBE, config, 0.5 * math.pi, 0.02) == 0.0
+    # On a 0.1 m high box the rolled pad would have to overhang the top by 4.5 cm: no roll.
+    low_box = [0.2, 0.2, 0.1]
+    assert grasp_lift(low_box, config, 0.5 * math.pi, 0.02) is None
+    assert {roll for roll, _ in grasp_candidates(low_box, config, 0.02)} == {0.0}
 
 
 def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
@@ -96,7 +114,7 @@ def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
     home = {arm: cell.arm(arm).q_home for arm in ARMS}
     p_world_object = np.array([0.38, 0.0, CUBE_HEIGHT])
     R_world_object = yaw_rotation(math.radians(15.0))
-    plan = plan_grasp(models, home, p_world_object, R_world_object, CUBE, config)
+    plan = plan_grasp(models, home, p_world_object, R_world_object, CUBE, config, 0.02)
     assert plan.reachable and plan.reason == ''
     assert abs(plan.roll) == pytest.approx(0.5 * math.pi)
     flat_reach = max(grasp_shifts(CUBE, config, 0.0))

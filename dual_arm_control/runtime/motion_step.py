@@ -208,7 +208,8 @@ class MotionGeneratorStep:
         position, rotation, _, _ = estimate_at(estimate, stamp_ns)
         self.grasp_plan = plan_grasp(
             self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
-            np.asarray(config.object_size), config.reachability)
+            np.asarray(config.object_size), config.reachability,
+            config.impact.support_clearance)
         if not self.grasp_plan.reachable:
             reason = f'grasp out of reach: {self.grasp_plan.reason}'
             self.refusals.refuse('unreachable_grasp', reason)
