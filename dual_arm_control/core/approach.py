@@ -9,6 +9,7 @@ surface the box rests on), and the yield of a pad that touches its face before t
 from dataclasses import replace
 
 from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.grasp import rolled_pad_half_extents
 from dual_arm_control.core.impact import (clearance_limited_direction, impact_direction,
                                           max_impact_tilt)
 from dual_arm_control.core.manipulation import (lift_velocity, place_velocity, toss_geometry,
@@ -80,20 +81,37 @@ def object_motion_direction(config, p_world_object):
     return lift_velocity(p_world_object, config.lift, config.coordination)
 
 
-def impact_directions(config, frames, object_velocity, support_height=None):
+def rolled_impact_config(config, pad_roll):
+    """
+    Return config.impact with pad_half_height of the pads rolled by pad_roll [rad].
+
+    impact.pad_half_height is the unrolled pad's half extent across the impact plane (its
+    half width); rolled about the face normal, the pad reaches |sin| pad_half_length +
+    |cos| pad_half_height below its centre (core.grasp.rolled_pad_half_extents).
+    """
+    if pad_roll == 0.0:
+        return config.impact
+    _, half_height = rolled_pad_half_extents(pad_roll, config.reachability.pad_half_length,
+                                             config.impact.pad_half_height)
+    return replace(config.impact, pad_half_height=half_height)
+
+
+def impact_directions(config, frames, object_velocity, support_height=None, pad_roll=0.0):
     """
     Return {arm: (3,)} unit impact directions: each face normal tilted toward the motion.
 
     support_height [m]: height of the surface the box rests on; when given, a direction's rise
-    is limited so the pad's run-in clears it (clearance_limited_direction).
+    is limited so the run-in of the pad (rolled by pad_roll [rad] about the face normal)
+    clears it (clearance_limited_direction).
     """
     max_tilt = max_impact_tilt(config.impact)
+    impact = rolled_impact_config(config, pad_roll)
     directions = {}
     for arm in ARMS:
         direction = impact_direction(frames[arm].normal, object_velocity, max_tilt)
         if support_height is not None:
             direction = clearance_limited_direction(
-                direction, frames[arm].p_world_grasp[2] - support_height, config.impact)
+                direction, frames[arm].p_world_grasp[2] - support_height, impact)
         directions[arm] = direction
     return directions
 

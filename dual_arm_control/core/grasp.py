@@ -4,11 +4,14 @@ Grasp frames on the object's faces, from the object pose and size.
 The object's y axis is the squeeze axis. The left pad grasps the +y face, the right pad the -y
 face. Each grasp frame has z = contact normal pointing into the object, x = object x and
 y = z x x, and its origin at the face centre (plus an optional offset in the object frame).
-At contact the tool frame coincides with the grasp frame.
+A pad may also be rolled about the face normal (the flat pad is flush with its face at any
+roll): the grasp frame then turns by that angle about its z axis. At contact the tool frame
+coincides with the grasp frame.
 """
 
 from dataclasses import dataclass
 import functools
+import math
 
 from dual_arm_control.core.geometry import cross3
 import numpy as np
@@ -47,7 +50,29 @@ def p_object_grasp(arm, size, offset=(0.0, 0.0, 0.0)):
     return np.array([0.0, _FACE_SIGN[arm] * 0.5 * size[1], 0.0]) + np.asarray(offset, float)
 
 
-def grasp_frame(arm, p_world_object, R_world_object, size, offset=(0.0, 0.0, 0.0)):
-    """Return the world grasp frame of an arm for an object pose and box size [m]."""
+def pad_roll_rotation(roll):
+    """Return the rotation by roll [rad] about the grasp z axis (the face normal)."""
+    cosine, sine = math.cos(roll), math.sin(roll)
+    return np.array([[cosine, -sine, 0.0], [sine, cosine, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rolled_pad_half_extents(roll, half_length, half_width):
+    """
+    Return the half extents [m] of a pad rolled by roll [rad] along grasp x and grasp y.
+
+    The pad spans half_length along its own x and half_width along its own y; rolled about
+    its normal, the rectangle covers |cos| half_length + |sin| half_width along the unrolled
+    grasp x (the object x axis) and |sin| half_length + |cos| half_width along grasp y (the
+    object z axis, across the impact plane).
+    """
+    cosine, sine = abs(math.cos(roll)), abs(math.sin(roll))
+    return (cosine * half_length + sine * half_width, sine * half_length + cosine * half_width)
+
+
+def grasp_frame(arm, p_world_object, R_world_object, size, offset=(0.0, 0.0, 0.0), roll=0.0):
+    """Return the world grasp frame of an arm for an object pose, box size [m] and pad roll."""
     p_world_grasp = p_world_object + R_world_object @ p_object_grasp(arm, size, offset)
-    return GraspFrame(p_world_grasp, R_world_object @ _R_object_grasp(arm))
+    R_world_grasp = R_world_object @ _R_object_grasp(arm)
+    if roll != 0.0:
+        R_world_grasp = R_world_grasp @ pad_roll_rotation(roll)
+    return GraspFrame(p_world_grasp, R_world_grasp)

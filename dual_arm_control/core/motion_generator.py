@@ -175,6 +175,7 @@ class DualArmMotionGenerator:
         self._toss_feedback = _toss_feedback(config.toss)
         self._release_object_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
+        self._grasp_roll = 0.0
         self.reconfigure(config)
 
     @property
@@ -188,13 +189,14 @@ class DualArmMotionGenerator:
         return self._phase_machine.phase
 
     @property
-    def grasp_offset(self):
-        """Return the offset (3,) [m] of the grasp points from the face centres, object frame."""
-        return self._grasp_offset.copy()
+    def grasp(self):
+        """Return the grasp: offset (3,) [m] from the face centres (object frame), roll [rad]."""
+        return self._grasp_offset.copy(), self._grasp_roll
 
-    def set_grasp_offset(self, offset):
-        """Grasp the faces at offset (3,) [m] from their centres (object frame) from now on."""
+    def set_grasp(self, offset, roll=0.0):
+        """Grasp the faces at offset (3,) [m] from their centres, pads rolled by roll [rad]."""
         self._grasp_offset = finite_array('grasp_offset', offset, (3,)).copy()
+        self._grasp_roll = float(finite_array('grasp_roll', roll, ()))
 
     def reconfigure(self, config):
         """Apply a new configuration at the next tick; the phase and filters are kept."""
@@ -224,7 +226,7 @@ class DualArmMotionGenerator:
         v_object = finite_array('v_world_object', obj.v_world_object, (3,))
         R_object = finite_array('R_world_object', obj.R_world_object, (3, 3))
         frames = {arm: grasp_frame(arm, p_object, R_object, config.object_size,
-                                   self._grasp_offset) for arm in ARMS}
+                                   self._grasp_offset, self._grasp_roll) for arm in ARMS}
         pad_forces, contacts = {}, {}
         for index, arm in enumerate(ARMS):
             compensated = self._ft[arm].update(arms[arm].ft_wrench_sensor,
@@ -250,7 +252,7 @@ class DualArmMotionGenerator:
         object_velocity = self._object_velocity(p_object, v_object, phase, dt)
         omega_object = self._object_angular_velocity(R_object, phase)
         directions = impact_directions(config, frames, object_velocity,
-                                       support_height_below(config, p_object))
+                                       support_height_below(config, p_object), self._grasp_roll)
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
             commands = yield_to_single_contact(commands, contacts, frames)

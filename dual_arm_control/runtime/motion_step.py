@@ -9,9 +9,10 @@ went back (simulation reset): the role starts over as at start-up.
 
 An episode starts on request, or by itself at auto_start_ns once an object estimate exists,
 and only if both arms can reach their grasp frames within their joint limits (core
-reachability, checked once at the start with the estimate; a shifted grasp is used when the
-centred one is out of reach). An unreachable grasp is refused with its reason: the arms stay in
-standby and the tick's phase carries the event 'unreachable'. A landing target given while the
+reachability, checked once at the start with the estimate; a shifted grasp, or one with the
+pads rolled about the face normals, is used when the centred one is out of reach). An
+unreachable grasp is refused with its reason: the arms stay in standby and the tick's phase
+carries the event 'unreachable'. A landing target given while the
 episode runs (set_landing_target) re-plans the release state (core.toss_planning) and applies it
 at the next tick, until the box is released; a target no release serves, or one that comes after
 the release, is refused with its reason. A tick whose inputs the generator
@@ -207,12 +208,13 @@ class MotionGeneratorStep:
         position, rotation, _, _ = estimate_at(estimate, stamp_ns)
         self.grasp_plan = plan_grasp(
             self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
-            np.asarray(config.object_size), config.reachability)
+            np.asarray(config.object_size), config.reachability,
+            config.impact.support_clearance)
         if not self.grasp_plan.reachable:
             reason = f'grasp out of reach: {self.grasp_plan.reason}'
             self.refusals.refuse('unreachable_grasp', reason)
             return reason
-        self._generator.set_grasp_offset(self.grasp_plan.offset)
+        self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
         return ''
 
 

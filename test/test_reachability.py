@@ -1,0 +1,171 @@
+"""The grasp planner's choice among equivalent grasps: pad roll and shift along the face."""
+
+import math
+
+from dual_arm_control.core.approach import rolled_impact_config
+from dual_arm_control.core.geometry import rotation_log
+from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
+from dual_arm_control.core.impact import clearance_limited_direction
+from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.reachability import (grasp_candidates, grasp_lift, grasp_shifts,
+                                                PAD_ROLLS, plan_grasp, ReachabilityConfig)
+from dual_arm_control.description.cell import arm_model, load_cell
+import numpy as np
+import pytest
+
+ARMS = ('left', 'right')
+CUBE = np.array([0.2, 0.2, 0.2])
+# The paper cube resting on the pallet (top at 0.22 m).
+CUBE_HEIGHT = 0.32
+# iiwa A4 folds at most 120 deg, so the wrist (A6 axis) stays at least this far from the
+# shoulder (A2 axis): the law of cosines over the upper arm and forearm (URDF d3, d5) [m].
+SHOULDER_WRIST_MIN = {'left': math.sqrt(0.4 ** 2 + 0.4 ** 2 - 0.4 * 0.4),
+                      'right': math.sqrt(0.42 ** 2 + 0.4 ** 2 - 0.42 * 0.4)}
+SHOULDER = {'left': np.array([0.0, 0.5, 0.34]), 'right': np.array([0.0, -0.5, 0.36])}
+# Tool point to wrist along the tool axis: A6 -> A7 0.081 m, flange 0.045 m, pad 0.115 m.
+WRIST_TO_TOOL = 0.241
+
+
+@pytest.fixture(scope='module')
+def cell():
+    return load_cell()
+
+
+@pytest.fixture(scope='module')
+def models(cell):
+    return {arm: arm_model(arm, cell) for arm in ARMS}
+
+
+def yaw_rotation(yaw):
+    return np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
+                     [0.0, 0.0, 1.0]])
+
+
+def test_a_rolled_pad_covers_its_width_along_the_face():
+    assert rolled_pad_half_extents(0.0, 0.075, 0.05) == pytest.approx((0.075, 0.05))
+    assert rolled_pad_half_extents(0.5 * math.pi, 0.075, 0.05) == pytest.approx((0.05, 0.075))
+    assert rolled_pad_half_extents(-0.5 * math.pi, 0.075, 0.05) == pytest.approx((0.05, 0.075))
+    # At 45 deg the rectangle's corners set both extents: (a + b) / sqrt(2).
+    diagonal = (0.075 + 0.05) / math.sqrt(2.0)
+    assert rolled_pad_half_extents(0.25 * math.pi, 0.075, 0.05) == pytest.approx(
+        (diagonal, diagonal))
+
+
+def test_a_rolled_grasp_frame_keeps_the_face_point_and_normal():
+    p_world_object, R_world_object = np.array([0.41, 0.0, CUBE_HEIGHT]), yaw_rotation(0.3)
+    for arm in ARMS:
+        flat = grasp_frame(arm, p_world_object, R_world_object, CUBE)
+        rolled = grasp_frame(arm, p_world_object, R_world_object, CUBE, roll=0.5 * math.pi)
+        np.testing.assert_array_equal(rolled.p_world_grasp, flat.p_world_grasp)
+        np.testing.assert_allclose(rolled.normal, flat.normal, atol=1e-15)
+        np.testing.assert_allclose(rolled.R_world_grasp.T @ rolled.R_world_grasp, np.eye(3),
+                                   atol=1e-12)
+        assert np.linalg.det(rolled.R_world_grasp) == pytest.approx(1.0)
+        # A quarter turn puts the pad's long side (tool x) along the vertical object z.
+        assert abs(rolled.R_world_grasp[:, 0] @ R_world_object[:, 2]) == pytest.approx(1.0)
+
+
+def test_candidates_prefer_the_unrolled_centred_grasp_and_keep_the_pad_on_the_face():
+    config = ReachabilityConfig()
+    clearance = 0.02
+    for size in ([0.16] * 3, CUBE, [0.26] * 3, [0.2, 0.3, 0.2], [0.25, 0.19, 0.2]):
+        candidates = grasp_candidates(size, config, clearance)
+        assert candidates[0][0] == 0.0 and not candidates[0][1].any()
+        rolls = [roll for roll, _ in candidates]
+        assert rolls == sorted(rolls, key=PAD_ROLLS.index) and set(rolls) == set(PAD_ROLLS)
+        for roll in PAD_ROLLS:
+            offsets = np.array([offset for candidate, offset in candidates if candidate == roll])
+            assert offsets[:, 0].tolist() == list(grasp_shifts(size, config, roll))
+            assert offsets[0, 0] == 0.0 and np.all(np.diff(offsets[:, 0]) > 0.0)
+            half_along, half_across = rolled_pad_half_extents(roll, 0.075, 0.05)
+            # The pad overhangs the face's front and top edges by at most -edge_margin ...
+            assert offsets[-1, 0] + half_along <= 0.5 * size[0] - config.edge_margin + 1e-12
+            assert np.all(offsets[:, 2] + half_across
+                          <= 0.5 * size[2] - config.edge_margin + 1e-12)
+            # ... and its lowest point clears the surface the box rests on.
+            assert np.all(offsets[:, 2] - half_across >= -0.5 * size[2] + clearance - 1e-12)
+        # The rolled pad, 0.05 m narrower along the face, shifts 0.025 m farther toward +x.
+        assert grasp_shifts(size, config, 0.5 * math.pi)[-1] == pytest.approx(
+            grasp_shifts(size, config, 0.0)[-1] + 0.025, abs=1e-12)
+
+
+def test_a_rolled_pad_rises_to_clear_the_support_or_is_left_out():
+    config = ReachabilityConfig()
+    # The unrolled pad reaches 0.05 m down: on every catalogue box it clears 2 cm unraised.
+    assert grasp_lift([0.16] * 3, config, 0.0, 0.02) == 0.0
+    # Rolled it reaches 0.075 m down: on the 0.16 m cube it rises 1.5 cm (0.075 + 0.02 - 0.08).
+    assert grasp_lift([0.16] * 3, config, 0.5 * math.pi, 0.02) == pytest.approx(0.015)
+    assert grasp_lift(CUBE, config, 0.5 * math.pi, 0.02) == 0.0
+    # On a 0.1 m high box the rolled pad would have to overhang the top by 4.5 cm: no roll.
+    low_box = [0.2, 0.2, 0.1]
+    assert grasp_lift(low_box, config, 0.5 * math.pi, 0.02) is None
+    assert {roll for roll, _ in grasp_candidates(low_box, config, 0.02)} == {0.0}
+
+
+def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
+    """
+    At 15 deg of yaw, 3 cm closer than nominal, the left face turns toward the left base.
+
+    The unrolled pad cannot shift far enough along the face for the left elbow; the quarter
+    rolled pad, 0.05 m narrower along the face, can: the plan is rolled, both tools reach
+    their rolled grasp frames within the joint limits, and the pads stay on the faces.
+    """
+    config = ReachabilityConfig()
+    home = {arm: cell.arm(arm).q_home for arm in ARMS}
+    p_world_object = np.array([0.38, 0.0, CUBE_HEIGHT])
+    R_world_object = yaw_rotation(math.radians(15.0))
+    plan = plan_grasp(models, home, p_world_object, R_world_object, CUBE, config, 0.02)
+    assert plan.reachable and plan.reason == ''
+    assert abs(plan.roll) == pytest.approx(0.5 * math.pi)
+    flat_reach = max(grasp_shifts(CUBE, config, 0.0))
+    assert flat_reach < plan.offset[0] <= 0.1 - 0.05 - config.edge_margin + 1e-12
+    for arm in ARMS:
+        frame = grasp_frame(arm, p_world_object, R_world_object, CUBE, plan.offset, plan.roll)
+        q = plan.solutions[arm].q
+        lower, upper = models[arm].position_limits
+        assert np.all(q >= lower) and np.all(q <= upper)
+        p_world_tool, R_world_tool = models[arm].tool_pose(q)
+        assert np.linalg.norm(p_world_tool - frame.p_world_grasp) <= config.position_tolerance
+        assert np.linalg.norm(rotation_log(frame.R_world_grasp @ R_world_tool.T)) <= (
+            config.orientation_tolerance)
+    # Without the rolled candidates the same box is out of reach of the left arm.
+    for shift in grasp_shifts(CUBE, config, 0.0):
+        frame = grasp_frame('left', p_world_object, R_world_object, CUBE, [shift, 0.0, 0.0])
+        wrist = frame.p_world_grasp - WRIST_TO_TOOL * frame.normal
+        assert np.linalg.norm(wrist - SHOULDER['left']) < SHOULDER_WRIST_MIN['left']
+
+
+def test_a_box_no_flush_pad_can_reach_is_still_refused(models, cell):
+    """
+    25 deg of yaw, 6 cm closer than nominal: the refusal is genuine.
+
+    Whatever the pad's roll, its tool axis is the face normal, so the wrist sits 0.241 m out
+    from the contact point; even with the contact point at the face's front edge the left
+    wrist stays closer to its shoulder than the elbow can fold, and the planner refuses.
+    """
+    p_world_object = np.array([0.35, 0.0, CUBE_HEIGHT])
+    R_world_object = yaw_rotation(math.radians(25.0))
+    home = {arm: cell.arm(arm).q_home for arm in ARMS}
+    for shift in np.linspace(-0.1, 0.1, 21):
+        for lift in np.linspace(-0.1, 0.1, 21):
+            frame = grasp_frame('left', p_world_object, R_world_object, CUBE,
+                                [shift, 0.0, lift])
+            wrist = frame.p_world_grasp - WRIST_TO_TOOL * frame.normal
+            assert np.linalg.norm(wrist - SHOULDER['left']) < SHOULDER_WRIST_MIN['left']
+    plan = plan_grasp(models, home, p_world_object, R_world_object, CUBE, ReachabilityConfig())
+    assert not plan.reachable and plan.roll == 0.0 and not plan.offset.any()
+    assert 'left arm misses its grasp frame' in plan.reason
+
+
+def test_the_run_in_of_a_rolled_pad_clears_the_support():
+    config = MotionGeneratorConfig()
+    assert rolled_impact_config(config, 0.0) is config.impact
+    rolled = rolled_impact_config(config, 0.5 * math.pi)
+    assert rolled.pad_half_height == pytest.approx(config.reachability.pad_half_length)
+    rho = rolled.region.transitory_distance
+    rising = np.array([0.6, -0.6, 0.5]) / np.linalg.norm([0.6, -0.6, 0.5])
+    for height in (0.08, 0.1, 0.13, 0.2):
+        direction = clearance_limited_direction(rising, height, rolled)
+        # The rolled pad reaches 0.075 m below its centre, 2.5 cm more than the unrolled one.
+        lowest_pad_point = height - rho * direction[2] - 0.075
+        assert lowest_pad_point >= rolled.support_clearance - 1e-12 or direction[2] == 0.0
