@@ -7,8 +7,8 @@ the next tick (as the torque-controlled arms do), from standby toward the paper'
 
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.geometry import rotation_exp
-from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
-                                                    ObjectMeasurement)
+from dual_arm_control.core.motion_generator import DualArmMotionGenerator
+from dual_arm_control.core.motion_signals import ArmMeasurement, ObjectMeasurement
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.runtime.timing import TickSchedule

@@ -178,7 +178,7 @@ def test_a_pad_touching_alone_stops_pushing_into_its_face():
     from dual_arm_control.core.approach import yield_to_single_contact
     from dual_arm_control.core.contact import ContactState
     from dual_arm_control.core.grasp import grasp_frame
-    from dual_arm_control.core.motion_generator import ArmCommand
+    from dual_arm_control.core.motion_signals import ArmCommand
     frames = {arm: grasp_frame(arm, np.array([0.41, 0.0, 0.32]), yaw_rotation(0.3),
                                [0.2, 0.2, 0.2]) for arm in ('left', 'right')}
     commands = {arm: ArmCommand(0.5 * frames[arm].normal + [0.1, 0.0, 0.2], np.zeros(3),

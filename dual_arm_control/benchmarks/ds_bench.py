@@ -64,8 +64,8 @@ def bench_motion_generator_step(ticks=2000, dt=0.005):
     That is the node's tick: FT compensation, contact, phases, grasp frames, the impact DS,
     speed shaping and the orientation DS of both arms.
     """
-    from dual_arm_control.core.motion_generator import (ArmMeasurement, DualArmMotionGenerator,
-                                                        ObjectMeasurement)
+    from dual_arm_control.core.motion_generator import DualArmMotionGenerator
+    from dual_arm_control.core.motion_signals import ArmMeasurement, ObjectMeasurement
     from dual_arm_control.description.cell import load_cell
     from dual_arm_control.runtime.configuration import motion_config_for_scenario
     from dual_arm_control.scenario import load_scenario, scenario_path

@@ -26,6 +26,7 @@ from dual_arm_control.core.manipulation import (cooperative_manipulation_velocit
                                                 place_velocity, PlaceConfig, release_rotation,
                                                 release_velocity, toss_geometry, toss_velocity,
                                                 TossConfig)
+from dual_arm_control.core.motion_signals import ArmCommand, MotionOutput
 from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_coupling,
                                                orientation_ds_angular_velocity,
@@ -97,70 +98,6 @@ class MotionGeneratorConfig:
         for rotation in rotations:
             if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6):
                 raise ConfigError('standby_rotations must be rotation matrices')
-
-
-@dataclass(frozen=True)
-class ArmMeasurement:
-    """
-    What one arm reports to the motion generator.
-
-    Fields: p_world_tool (3,) m and R_world_tool (3, 3), the tool frame; ft_wrench_sensor (6,)
-    [N, N m], the raw Net F/T reading (wrench the tool applies to the sensor, sensor frame);
-    R_world_sensor (3, 3).
-    """
-
-    p_world_tool: np.ndarray
-    R_world_tool: np.ndarray
-    ft_wrench_sensor: np.ndarray
-    R_world_sensor: np.ndarray
-
-
-@dataclass(frozen=True)
-class ObjectMeasurement:
-    """Estimated object state: p_world_object (3,) m, R_world_object, v_world_object m/s."""
-
-    p_world_object: np.ndarray
-    R_world_object: np.ndarray
-    v_world_object: np.ndarray
-
-
-@dataclass(frozen=True)
-class ArmCommand:
-    """
-    DS command for one arm: desired tool twist and orientation, and its current attractor.
-
-    Fields: v_world (3,) m/s, w_world (3,) rad/s, R_world_desired (3, 3), p_world_attractor (3,)
-    m (grasp point while reaching, standby while retracting).
-    """
-
-    v_world: np.ndarray
-    w_world: np.ndarray
-    R_world_desired: np.ndarray
-    p_world_attractor: np.ndarray
-
-
-@dataclass(frozen=True)
-class MotionOutput:
-    """
-    Result of one tick.
-
-    Fields: phase (PhaseMachineOutput); commands {arm: ArmCommand}; object_velocity (3,) m/s and
-    object_angular_velocity (3,) rad/s, the desired object twist; contacts {arm: ContactState};
-    pad_forces {arm: (3,) N, compensated force of the pad on the object, world}; grasp_frames
-    {arm: GraspFrame}; impact_directions {arm: (3,)}; release_position (3,) m and
-    release_velocity (3,) m/s of toss tasks (None otherwise).
-    """
-
-    phase: object
-    commands: dict
-    object_velocity: np.ndarray
-    object_angular_velocity: np.ndarray
-    contacts: dict
-    pad_forces: dict
-    grasp_frames: dict
-    impact_directions: dict
-    release_position: object
-    release_velocity: object
 
 
 class DualArmMotionGenerator:

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import UnreachableTargetError
 from dual_arm_control.core.exceptions import InputError
-from dual_arm_control.core.motion_generator import (ArmCommand, ArmMeasurement,
-                                                    DualArmMotionGenerator, ObjectMeasurement)
+from dual_arm_control.core.motion_generator import DualArmMotionGenerator
+from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement, ObjectMeasurement
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.reachability import plan_grasp
 from dual_arm_control.runtime.configuration import config_for_landing_target
