@@ -71,7 +71,35 @@ def controller_kill(kind, stage, trial):
                              if label != f'{arm}_passive_controller' and code not in (0, None))
     outcome.bag_status = bag_status(run.bag_file)
     outcome.note = f'{arm} controller killed'
-    return _measure(outcome, run.trajectory_file, (arm,), trial.release_time)
+    outcome = _measure(outcome, run.trajectory_file, (arm,), trial.release_time)
+    hold = fri_hold_problem(run.trajectory_file, arm, outcome.fault_time)
+    if hold or outcome.bag_status != 'complete' or outcome.node_exits:
+        outcome.held = False
+        outcome.note += f'; {hold}' if hold else ''
+    return outcome
+
+
+def fri_hold_problem(trajectory_file, arm, fault_time):
+    """
+    Return what is wrong with the FRI hold of arm after its controller died, or ''.
+
+    FriCycle's policy: the previous torque once, then the hold on every later cycle (the
+    bridge's counters in the log; one cycle of slack for the last command's delivery). Cycles
+    a loaded machine answered after KILL_ANSWER_TIMEOUT before the kill add repeats and holds
+    too, so these are lower bounds.
+    """
+    try:
+        data = load_trajectory(trajectory_file)
+    except DualArmControlError as error:
+        return f'no trajectory: {error}'
+    t = data['t']
+    cycles_after = int(((t >= fault_time - 1e-9) & (t < t[-1] - 1e-9)).sum())
+    repeats = int(data.get(f'{arm}_previous_torque_repeats', -1))
+    holds = int(data.get(f'{arm}_watchdog_holds', -1))
+    if repeats < 1 or holds < cycles_after - 2:
+        return (f'FRI hold not kept: {repeats} previous-torque repeats, {holds} holds in '
+                f'{cycles_after} cycles after the kill')
+    return ''
 
 
 def mocap_dropout(kind, duration, stage, trial):
@@ -147,7 +175,8 @@ def _measure(outcome, trajectory_file, dead_arms, release_time):
 
 KILL_RULE = ('its arm holds (previous torque once, then gravity + damping); tool speed < '
              '0.05 m/s from 0.3 s on; a held box falls from <= 2 cm; bag whole')
-DROPOUT_RULE = 'tracker predicts through the gap; no NaN or clamped torque; task goes on'
+DROPOUT_RULE = ('held: no NaN torque, none beyond the limits, a held box not dropped; recovered: '
+                'the task still succeeds (the tracker predicts through the gap)')
 FAULT_KINDS = {kind.name: kind for kind in [
     *(FaultKind(f'controller_kill_{stage}', 'graph', KILL_RULE,
                 partial(controller_kill, f'controller_kill_{stage}', stage))
@@ -159,10 +188,12 @@ FAULT_KINDS = {kind.name: kind for kind in [
                 partial(mocap_dropout, f'mocap_dropout_{int(ms)}ms_impact', ms / 1000.0,
                         'impact'))
       for ms in (50, 200, 500)),
-    FaultKind('mocap_dropout_200ms_carry', 'inprocess', DROPOUT_RULE + ' (box held)',
+    FaultKind('mocap_dropout_200ms_carry', 'inprocess', DROPOUT_RULE,
               partial(mocap_dropout, 'mocap_dropout_200ms_carry', 0.2, 'carry')),
-    FaultKind('mocap_outlier_10cm_impact', 'inprocess', 'the jump is gated or filtered; task '
-              'goes on', partial(mocap_outlier, 'mocap_outlier_10cm_impact', 0.1)),
-    FaultKind('malformed_burst', 'graph', 'refused and counted per node and topic; no NaN or '
-              'clamped torque; no node exits', partial(malformed_burst, 'malformed_burst')),
+    FaultKind('mocap_outlier_10cm_impact', 'inprocess', DROPOUT_RULE.replace(
+        'predicts through the gap', 'gates or filters the jump'),
+        partial(mocap_outlier, 'mocap_outlier_10cm_impact', 0.1)),
+    FaultKind('malformed_burst', 'graph', 'refused and counted per node and input in '
+              '/diagnostics; no NaN torque, none beyond the limits; no node exits, no stall',
+              partial(malformed_burst, 'malformed_burst')),
 ]}

@@ -73,4 +73,13 @@ def reliability_document(out_dir, kinds):
     lines.append(RULES.rstrip('\n'))
     for kind in kinds.values():
         lines.append(f'| `{kind.name}` | {kind.runner} | {kind.rule} |')
+    lines += ['', '## Trials that broke their rule', '',
+              '| kind | trial | seed | worst speed | worst drop | note |',
+              '|---|---|---|---|---|---|']
+    for name in kinds:
+        for row in _load(out_dir, name):
+            if not row['held'] and not row['note'].startswith('skipped'):
+                lines.append(f'| `{name}` | {row["trial"]} | {row["seed"]} | '
+                             f'{_number(row["worst_tool_speed"])} | '
+                             f'{_number(row["drop_height"])} | {row["note"][:100]} |')
     return '\n'.join(lines) + '\n'
