@@ -15,14 +15,15 @@ import json
 
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.exceptions import DualArmControlError
-from dual_arm_control.evaluation.episode import episode_metrics
 from dual_arm_control.runtime.node_settings import FRI_PERIOD
 from dual_arm_control.tools.faults.graph_run import GraphRun
 from dual_arm_control.tools.faults.launcher_kill import kill_under_launcher
 from dual_arm_control.tools.faults.malformed import draw_malformed
 from dual_arm_control.tools.faults.outcome import (bag_status, fill_from_trajectory, SETTLE_TIME,
                                                    TrialOutcome)
-from dual_arm_control.tools.faults.trial import cell, run_inprocess, torque_limits
+from dual_arm_control.tools.faults.param_fuzz import parameter_fuzz
+from dual_arm_control.tools.faults.trial import (measure_graph_episode, run_inprocess,
+                                                 torque_limits)
 from dual_arm_control.trajectory_log import load_trajectory
 
 # Wall time a lockstep bridge waits for a command before the cycle goes on without it [s].
@@ -71,7 +72,7 @@ def controller_kill(kind, stage, trial):
                              if label != f'{arm}_passive_controller' and code not in (0, None))
     outcome.bag_status = bag_status(run.bag_file)
     outcome.note = f'{arm} controller killed'
-    outcome = _measure(outcome, run.trajectory_file, (arm,), trial.release_time)
+    outcome = measure_graph_episode(outcome, run.trajectory_file, trial, (arm,))
     hold = fri_hold_problem(run.trajectory_file, arm, outcome.fault_time)
     if hold or outcome.bag_status != 'complete' or outcome.node_exits:
         outcome.held = False
@@ -155,22 +156,9 @@ def malformed_burst(kind, trial):
     outcome.note = json.dumps(counts, sort_keys=True)
     if stalled_at is not None:
         outcome.held, outcome.note = False, f'graph stalled at {stalled_at:.3f} s; {outcome.note}'
-    outcome = _measure(outcome, run.trajectory_file, (), trial.release_time)
+    outcome = measure_graph_episode(outcome, run.trajectory_file, trial)
     outcome.held = outcome.held and outcome.node_exits == 0 and stalled_at is None
-    if run.trajectory_file.is_file():
-        metrics = episode_metrics(trial.scenario, load_trajectory(run.trajectory_file), cell())
-        outcome.recovered = bool(metrics['success'])
     return outcome
-
-
-def _measure(outcome, trajectory_file, dead_arms, release_time):
-    try:
-        data = load_trajectory(trajectory_file)
-    except DualArmControlError as error:
-        outcome.held, outcome.note = False, f'{outcome.note}; no trajectory: {error}'
-        return outcome
-    return fill_from_trajectory(outcome, data, torque_limits(), dead_arms, outcome.fault_time,
-                                release_time)
 
 
 KILL_RULE = ('its arm holds (previous torque once, then gravity + damping); tool speed < '
@@ -193,6 +181,8 @@ FAULT_KINDS = {kind.name: kind for kind in [
     FaultKind('mocap_outlier_10cm_impact', 'inprocess', DROPOUT_RULE.replace(
         'predicts through the gap', 'gates or filters the jump'),
         partial(mocap_outlier, 'mocap_outlier_10cm_impact', 0.1)),
+    FaultKind('parameter_fuzz', 'graph', 'every invalid set refused; no node exits, no NaN '
+              'torque, none beyond the limits', partial(parameter_fuzz, 'parameter_fuzz')),
     FaultKind('malformed_burst', 'graph', 'refused and counted per node and input in '
               '/diagnostics; no NaN torque, none beyond the limits; no node exits, no stall',
               partial(malformed_burst, 'malformed_burst')),

@@ -13,12 +13,15 @@ from functools import lru_cache
 from pathlib import Path
 
 from dual_arm_control.contract import ARMS
+from dual_arm_control.core.exceptions import DualArmControlError
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.episode import episode_metrics
 from dual_arm_control.evaluation.trials import write_trial_scenario
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.scenario import load_scenario
+from dual_arm_control.tools.faults.outcome import fill_from_trajectory
+from dual_arm_control.trajectory_log import load_trajectory
 from dual_arm_control.trial_sampling import sample_trial
 
 TEMPLATE = 'paper_toss_random'
@@ -106,3 +109,17 @@ def prepare_trial(index, out_dir, domain=0, template=TEMPLATE):
     """Return Trial number index of the template, with its fault-free metrics."""
     scenario, nominal = _nominal(template, index)
     return Trial(index, scenario, nominal, Path(out_dir), domain)
+
+
+def measure_graph_episode(outcome, trajectory_file, trial, dead_arms=()):
+    """Fill an outcome from a graph run's trajectory log: safety fields and task success."""
+    try:
+        data = load_trajectory(trajectory_file)
+    except DualArmControlError as error:
+        outcome.held, outcome.note = False, f'{outcome.note}; no trajectory: {error}'
+        return outcome
+    outcome = fill_from_trajectory(outcome, data, torque_limits(), dead_arms, outcome.fault_time,
+                                   trial.release_time)
+    if not dead_arms:
+        outcome.recovered = bool(episode_metrics(trial.scenario, data, cell())['success'])
+    return outcome
