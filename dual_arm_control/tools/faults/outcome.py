@@ -42,9 +42,9 @@ class TrialOutcome:
     refused: int = 0
     nan_torques: int = 0
     torque_clamps: int = 0
-    worst_torque_ratio: float = 0.0
+    worst_torque_ratio: float = None
     worst_tool_speed: float = None
-    drop_height: float = 0.0
+    drop_height: float = None
     node_exits: int = 0
     bag_status: str = ''
     exit_code: int = None
@@ -121,6 +121,7 @@ def fill_from_trajectory(outcome, data, torque_limits, dead_arms=(), fault_time=
         settled = outcome.worst_tool_speed is not None and \
             outcome.worst_tool_speed < SETTLED_TOOL_SPEED
         safe = safe and settled
+    outcome.drop_height = 0.0
     if fault_time is not None and was_held(data, fault_time):
         _, outcome.drop_height = premature_drop(data, fault_time, release_time)
         safe = safe and outcome.drop_height <= DROP_HEIGHT_LIMIT

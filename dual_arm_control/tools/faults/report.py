@@ -39,6 +39,10 @@ def _number(value, digits=3):
     return '-' if value is None else f'{value:.{digits}f}'
 
 
+def _largest(rows, key):
+    return max((row[key] for row in rows if row[key] is not None), default=None)
+
+
 def kind_row(name, rows):
     """Return the table row of one kind's outcome rows."""
     run = [row for row in rows if not row['note'].startswith('skipped')]
@@ -53,9 +57,9 @@ def kind_row(name, rows):
     return (f'| `{name}` | {trials} | {sum(row["held"] for row in run)} | {recovered_text} | '
             f'{sum(row["refused"] for row in run)} | {sum(row["nan_torques"] for row in run)} | '
             f'{sum(row["torque_clamps"] for row in run)} | '
-            f'{_number(max((row["worst_torque_ratio"] for row in run), default=None))} | '
+            f'{_number(_largest(run, "worst_torque_ratio"))} | '
             f'{_number(max(speeds, default=None))} | '
-            f'{_number(max((row["drop_height"] for row in run), default=None))} | '
+            f'{_number(_largest(run, "drop_height"))} | '
             f'{sum(row["node_exits"] for row in run)} | '
             f'{sum(row["bag_status"] != "complete" for row in bags)}/{len(bags)} |')
 
