@@ -40,7 +40,9 @@ def _number(value, digits=3):
 
 
 def _largest(rows, key):
-    return max((row[key] for row in rows if row[key] is not None), default=None)
+    """Return the largest measured value of key; launcher trials (exit_code set) measure none."""
+    return max((row[key] for row in rows if row[key] is not None and row['exit_code'] is None),
+               default=None)
 
 
 def kind_row(name, rows):
