@@ -26,7 +26,12 @@ STALL_TIMEOUT = 30.0
 
 
 class SimProbe:
-    """An rclpy node in this process on ROS domain `domain`: sim clock, commands, diagnostics."""
+    """
+    An rclpy node in this process on ROS domain `domain`: sim time, commands, diagnostics.
+
+    The sim time is the bridge's ground truth stamp (every ground_truth_period, 10 ms), not
+    /clock, which a malformed burst writes to as well.
+    """
 
     def __init__(self, domain, name='fault_probe'):
         self.clock_ns = 0
@@ -38,8 +43,10 @@ class SimProbe:
         self.node = rclpy.create_node(name, context=self.context)
         self.executor = EventsExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self.node.create_subscription(contract.CLOCK.msg_type, contract.CLOCK.name,
-                                      self._on_clock, contract.CLOCK.qos)
+        self.node.create_subscription(
+            contract.GROUND_TRUTH_OBJECT.msg_type, contract.GROUND_TRUTH_OBJECT.name,
+            lambda msg: self._on_sim_time(stamp_ns(msg.header.stamp)),
+            contract.GROUND_TRUTH_OBJECT.qos)
         self.node.create_subscription(contract.DIAGNOSTICS.msg_type, contract.DIAGNOSTICS.name,
                                       self._on_diagnostics, contract.DIAGNOSTICS.qos)
         for arm in contract.ARMS:
@@ -53,9 +60,9 @@ class SimProbe:
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
-    def _on_clock(self, msg):
-        if stamp_ns(msg.clock) > self.clock_ns:
-            self.clock_ns = stamp_ns(msg.clock)
+    def _on_sim_time(self, t_ns):
+        if t_ns > self.clock_ns:
+            self.clock_ns = t_ns
             self.clock_moved_wall = time.monotonic()
 
     def stalled(self):
