@@ -66,8 +66,8 @@ class SimProbe:
             self.clock_moved_wall = time.monotonic()
 
     def stalled(self):
-        """Return True if the sim clock has not moved for STALL_TIMEOUT wall seconds."""
-        return time.monotonic() - self.clock_moved_wall > STALL_TIMEOUT
+        """Return True if the sim time, once started, has not moved for STALL_TIMEOUT [s]."""
+        return self.clock_ns > 0 and time.monotonic() - self.clock_moved_wall > STALL_TIMEOUT
 
     def _on_command(self, arm, msg):
         stamp = stamp_ns(msg.header.stamp)
