@@ -14,7 +14,9 @@ trial's own fault-free episode.
 
 Columns: **trials** run (skipped: the fault-free episode lacks the stage, e.g. the grasp is
 refused as out of reach); **held**: trials that kept the kind's rule; **recovered**: trials whose
-episode still met its task criteria (fault-free successes of the same trials in brackets);
+episode still met its task criteria (in-process kinds: fault-free successes of the same trials
+in brackets; a malformed burst also sends valid-looking messages, e.g. a landing target, that
+change the task, so its count says little);
 **refused**: messages refused and counted by the nodes (sum over trials); **NaN tau**: NaN
 torques applied; **clamps**: commands beyond the torque limits; **worst tau**: largest applied
 |tau| / limit; **worst speed**: largest tool speed of a killed controller's arm from 0.3 s after
@@ -45,8 +47,8 @@ def _largest(rows, key):
                default=None)
 
 
-def kind_row(name, rows):
-    """Return the table row of one kind's outcome rows."""
+def kind_row(name, rows, runner):
+    """Return the table row of one kind's outcome rows (runner: the kind's)."""
     run = [row for row in rows if not row['note'].startswith('skipped')]
     skipped = len(rows) - len(run)
     recovered = [row for row in run if row['recovered'] is not None]
@@ -54,8 +56,9 @@ def kind_row(name, rows):
     speeds = [row['worst_tool_speed'] for row in run if row['worst_tool_speed'] is not None]
     bags = [row for row in run if row['bag_status']]
     trials = f'{len(run)}' + (f' (+{skipped} skipped)' if skipped else '')
-    recovered_text = (f'{sum(row["recovered"] for row in recovered)} ({len(nominal)})'
-                      if recovered else '-')
+    recovered_text = '-' if not recovered else str(sum(row['recovered'] for row in recovered))
+    if recovered and runner == 'inprocess':
+        recovered_text += f' ({len(nominal)})'
     return (f'| `{name}` | {trials} | {sum(row["held"] for row in run)} | {recovered_text} | '
             f'{sum(row["refused"] for row in run)} | {sum(row["nan_torques"] for row in run)} | '
             f'{sum(row["torque_clamps"] for row in run)} | '
@@ -75,7 +78,7 @@ def reliability_document(out_dir, kinds):
     for name in kinds:
         rows = _load(out_dir, name)
         if rows:
-            lines.append(kind_row(name, rows))
+            lines.append(kind_row(name, rows, kinds[name].runner))
     lines.append(RULES.rstrip('\n'))
     for kind in kinds.values():
         lines.append(f'| `{kind.name}` | {kind.runner} | {kind.rule} |')
