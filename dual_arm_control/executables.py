@@ -22,6 +22,7 @@ EXECUTABLES = {
     'dual_arm_eval': 'dual_arm_control.evaluation.trials:main',
     'dual_arm_experiment': 'dual_arm_control.evaluation.experiments:main',
     'dual_arm_bench': 'dual_arm_control.benchmarks.bench:main',
+    'dual_arm_faults': 'dual_arm_control.tools.faults.campaign:main',
 }
 
 

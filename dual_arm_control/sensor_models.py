@@ -9,6 +9,9 @@ from dataclasses import dataclass, field, fields
 from dual_arm_control.core.validation import check_range, frozen_vector
 import numpy as np
 
+# Sample times are compared with this tolerance, the twin's clock being a sum of steps [s].
+SAMPLE_TIME_TOLERANCE = 1e-9
+
 
 @dataclass(frozen=True)
 class MocapConfig:
@@ -18,7 +21,11 @@ class MocapConfig:
     Fields: rate_hz: sampling rate on the sim clock [Hz]; latency: delay from sampling to
     delivery [s]; position_noise: Gaussian standard deviation per axis [m];
     orientation_noise: Gaussian standard deviation of the rotation vector per axis [rad];
-    dropout_probability: chance that a sample is lost [-].
+    dropout_probability: chance that a sample is lost [-]; dropout_start [s] and
+    dropout_duration [s]: every sample taken in [start, start + duration) is lost (a marker
+    occlusion; duration 0: none); outlier_time [s] and outlier_jump [m]: the first sample
+    taken at or after outlier_time is displaced by outlier_jump along world y, the squeeze
+    axis (outlier_time 0: none). The fault campaign (dual_arm_faults) places these.
     """
 
     rate_hz: float = 200.0
@@ -26,6 +33,10 @@ class MocapConfig:
     position_noise: float = 0.0005
     orientation_noise: float = 0.005
     dropout_probability: float = 0.0
+    dropout_start: float = 0.0
+    dropout_duration: float = 0.0
+    outlier_time: float = 0.0
+    outlier_jump: float = 0.0
 
     def __post_init__(self):
         check_range('rate_hz', self.rate_hz, 1.0, 1000.0, 'Hz')
@@ -34,6 +45,23 @@ class MocapConfig:
         check_range('orientation_noise', self.orientation_noise, 0.0, 0.5, 'rad')
         check_range('dropout_probability', self.dropout_probability, 0.0, 1.0, '',
                     high_open=True)
+        check_range('dropout_start', self.dropout_start, 0.0, 1.0e6, 's')
+        check_range('dropout_duration', self.dropout_duration, 0.0, 1.0e6, 's')
+        check_range('outlier_time', self.outlier_time, 0.0, 1.0e6, 's')
+        check_range('outlier_jump', self.outlier_jump, -1.0, 1.0, 'm')
+
+    def occluded(self, t):
+        """Return True if a sample taken at sim time t [s] falls in the dropout window."""
+        t = t + SAMPLE_TIME_TOLERANCE
+        return self.dropout_start <= t < self.dropout_start + self.dropout_duration
+
+    def outlier_offset(self, t):
+        """Return the displacement (3,) [m] of a sample taken at t (non-zero: the outlier)."""
+        if self.outlier_time > 0.0 and \
+                self.outlier_time <= t + SAMPLE_TIME_TOLERANCE < \
+                self.outlier_time + 1.0 / self.rate_hz:
+            return np.array([0.0, self.outlier_jump, 0.0])
+        return np.zeros(3)
 
 
 @dataclass(frozen=True)

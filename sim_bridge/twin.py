@@ -346,8 +346,9 @@ class DualArmTwin:
             position_noise = self._mocap_rng.normal(0.0, mocap.position_noise, 3)
             rotation_noise = self._mocap_rng.normal(0.0, mocap.orientation_noise, 3)
             dropped = self._mocap_rng.uniform() < mocap.dropout_probability
-            if dropped:
+            if dropped or mocap.occluded(self.time):
                 continue
+            p_world = p_world + mocap.outlier_offset(self.time)
             R_world_object = rotation_exp(rotation_noise) @ self.data.xmat[
                 self.index.object_body].reshape(3, 3)
             self._pending.append(MocapSample(stamp=self.time, p_world=p_world + position_noise,

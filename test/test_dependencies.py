@@ -49,6 +49,7 @@ DEPENDENCIES = {
     'matplotlib': ('matplotlib', 'python3-matplotlib'),
     'tqdm': ('tqdm', 'python3-tqdm'),
     'PIL': ('Pillow', 'python3-pil'),
+    'hypothesis': ('hypothesis', 'python3-hypothesis'),
     # rosdep has no key for imageio-ffmpeg: package.xml says so in a comment.
     'imageio_ffmpeg': ('imageio-ffmpeg', None),
 }

@@ -60,6 +60,21 @@ def test_barrier_starts_over_when_the_clock_goes_back():
     assert barrier.pending(2002 * MS) == {'a', 'b'}, 'the old timeline is forgotten'
 
 
+def test_stray_future_stamps_complete_alone_and_drop_no_awaited_cycle():
+    """Refused inputs stamped 10 s ahead (a malformed burst) once stalled the lockstep graph."""
+    barrier = ArrivalBarrier(lambda stamp: {'a', 'b', 'c'})
+    for name in 'abc':
+        barrier.arrived(650 * MS, name)
+    assert barrier.arrived(652 * MS, 'a') == []
+    for name in 'ab':
+        assert barrier.arrived(10_652 * MS, name) == []
+    assert barrier.arrived(10_652 * MS, 'c') == [10_652 * MS]
+    assert barrier.pending(652 * MS) == {'b', 'c'}
+    assert barrier.arrived(652 * MS, 'b') == []
+    assert barrier.arrived(652 * MS, 'c') == [652 * MS]
+    assert barrier.dropped == 0
+
+
 # -- signals -------------------------------------------------------------------------------------
 
 def test_joint_states_are_matched_by_name_in_any_order():

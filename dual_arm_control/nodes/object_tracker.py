@@ -5,7 +5,10 @@ Every accepted /mocap/object_pose sample is answered by one /object/state (nav_m
 frame world, child 'object') with the sample's stamp; every /clock cycle by one more, stamped
 with the cycle: the estimate then, or the news that there is no track yet. The lockstep bridge
 waits for the first kind, the lockstep DS and wrench QP for the second (only with `lockstep`;
-in realtime they use the newest estimate). What is refused, and
+in realtime they use the newest estimate). In lockstep a refused sample is answered too, with
+the estimate at its stamp (none for a stamp older than the last sample): the bridge waits for
+an answer to each sample it sent, and a stray sample with a newer stamp would otherwise stall
+the graph; the cycle's own answer follows and is the one the DS and QP use. What is refused, and
 when a new TrackerConfig applies, is the runtime step's business (runtime/tracker_step.py).
 Parameters: the TrackerConfig fields (live), lockstep and diagnostics_period.
 """
@@ -30,6 +33,7 @@ class ObjectTrackerNode(Node):
     def __init__(self, node_name='object_tracker', **node_options):
         super().__init__(node_name, **node_options)
         settings = NodeParameters(self, node_table('object_tracker').settings)
+        self._lockstep = settings['lockstep']
         self._diagnostics = CounterDiagnostics(self)
         parameters = ConfigParameters(self, TrackerConfig(), self._on_config)
         self.step = TrackerStep(parameters.config, refusal_logger(self.get_logger()))
@@ -61,8 +65,11 @@ class ObjectTrackerNode(Node):
         self.step.reconfigure(config)
 
     def _on_mocap(self, msg):
-        state = self.step.sample(stamp_ns(msg.header.stamp), vector3(msg.pose.position),
+        sample_ns = stamp_ns(msg.header.stamp)
+        state = self.step.sample(sample_ns, vector3(msg.pose.position),
                                  quaternion(msg.pose.orientation))
+        if state is None and self._lockstep:
+            state = self.step.at(sample_ns)
         if state is not None:
             self._publish(state)
             self._diagnostics.publish_if_due(state.stamp_ns, self._report)

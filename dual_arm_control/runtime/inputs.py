@@ -43,7 +43,10 @@ class ArrivalBarrier:
     never were due (a role that ticks on some cycles only sees the other cycles' inputs go
     by). At most MAX_PENDING_STAMPS incomplete stamps are kept, so a lost message costs
     bounded memory. A stamp TIME_RESET_GAP_NS older than the last completed one starts a new
-    timeline (the clock went back): every pending stamp of the old one is dropped.
+    timeline (the clock went back): every pending stamp of the old one is dropped. A stamp more
+    than TIME_RESET_GAP_NS after the last completed one is no next cycle (lockstep advances one
+    cycle at a time) but a stray message's, e.g. refused inputs stamped in the future: it
+    completes alone, dropping nothing, so the cycle the graph waits for still completes.
     """
 
     def __init__(self, required):
@@ -67,13 +70,20 @@ class ArrivalBarrier:
                 del self._arrivals[min(self._arrivals)]
                 self.dropped += 1
             return []
-        newest = complete[-1]
+        stray = [stamp for stamp in complete if self._last_complete is not None
+                 and stamp - self._last_complete > TIME_RESET_GAP_NS]
+        for stamp in stray:
+            del self._arrivals[stamp]
+        if len(stray) == len(complete):
+            return stray
+        newest = complete[-len(stray) - 1]
+        complete = complete[:len(complete) - len(stray)]
         self._last_complete = newest
         for stamp in [s for s in self._arrivals if s <= newest]:
             if stamp not in complete:
                 self.dropped += 1
             del self._arrivals[stamp]
-        return complete
+        return complete + stray
 
     def pending(self, stamp_ns):
         """Return the inputs stamp_ns still waits for (empty if complete or unknown)."""

@@ -1,0 +1,86 @@
+"""
+The fault campaign's kinds, one trial each, judged on the twin's ground truth.
+
+A controller killed while carrying, a malformed burst on every subscribed topic, a 200 ms mocap
+dropout at the impact.
+
+Each test runs the kind exactly as dual_arm_faults does (the lockstep graph for the first two)
+and checks the physical outcome on the twin's ground truth.
+"""
+
+import json
+
+from dual_arm_control.contract import ARMS, TORQUE_COMMAND
+from dual_arm_control.runtime.node_settings import FRI_PERIOD
+from dual_arm_control.tools.faults.kinds import (FAULT_KINDS, fri_hold_problem,
+                                                 MALFORMED_PER_TRIAL)
+from dual_arm_control.tools.faults.malformed import DEFECTS, draw_malformed, SUBSCRIBED
+from dual_arm_control.tools.faults.outcome import tool_speed_after
+from dual_arm_control.tools.faults.trial import prepare_trial
+from dual_arm_control.trajectory_log import load_trajectory
+import numpy as np
+import pytest
+
+# The safety hold's joint damping gives the free arm a time constant of about 0.25 s, so 0.5 s
+# after the kill its tool speed is e^-2 = 0.14 of the speed at the kill; 0.25 leaves room for
+# the pushes of the box and the other arm.
+HOLD_DECAY_BOUND = 0.25
+
+
+@pytest.mark.slow
+def test_a_controller_killed_while_carrying_gets_the_fri_hold(tmp_path, ros_domain):
+    trial = prepare_trial(0, tmp_path / 'kill', int(ros_domain))
+    outcome = FAULT_KINDS['controller_kill_carry'].run(trial)
+    print(outcome.as_dict())
+    arm = ARMS[0]
+    data = load_trajectory(trial.out_dir / 'trajectory.npz')
+    t = data['t']
+    cycles_after = int(np.sum((t >= outcome.fault_time - 1e-9) & (t < t[-1] - 1e-9)))
+    assert outcome.note == f'{arm} controller killed'
+    assert trial.stage_time('carry') < outcome.fault_time < t[-1]
+    assert fri_hold_problem(trial.out_dir / 'trajectory.npz', arm, outcome.fault_time) == ''
+    assert int(data[f'{arm}_previous_torque_repeats']) >= 1
+    assert int(data[f'{arm}_watchdog_holds']) >= cycles_after - 2
+    assert outcome.nan_torques == 0 and outcome.torque_clamps == 0
+    assert outcome.worst_torque_ratio <= 1.0 + 1e-9
+    assert outcome.node_exits == 0
+    assert outcome.bag_status == 'complete'
+    speed_at_kill = tool_speed_after(data, (arm,), outcome.fault_time - FRI_PERIOD)
+    final_speed = np.linalg.norm(data[f'{arm}_tool_velocity'][-1])
+    print(f'{arm} tool speed at the kill {speed_at_kill:.3f} m/s, 0.5 s later '
+          f'{final_speed:.3f} m/s; from 0.3 s on at most {outcome.worst_tool_speed:.3f} m/s; '
+          f'box fell {outcome.drop_height:.3f} m')
+    assert final_speed < HOLD_DECAY_BOUND * speed_at_kill
+
+
+@pytest.mark.slow
+def test_a_malformed_burst_on_every_topic_is_refused_and_nothing_exits(tmp_path, ros_domain):
+    messages = draw_malformed(MALFORMED_PER_TRIAL, 0)
+    assert {message.topic_name for message in messages} == {
+        topic.resolved(arm) if arm else topic.name for topic, arm in SUBSCRIBED}
+    assert {message.defect for message in messages} == set(DEFECTS)
+    trial = prepare_trial(0, tmp_path / 'malformed', int(ros_domain))
+    outcome = FAULT_KINDS['malformed_burst'].run(trial)
+    print(outcome.as_dict())
+    counts = json.loads(outcome.note)
+    huge_torque_commands = sum(1 for message in messages if message.defect == 'huge'
+                               and message.topic is TORQUE_COMMAND)
+    assert outcome.node_exits == 0
+    assert outcome.nan_torques == 0
+    assert outcome.worst_torque_ratio <= 1.0 + 1e-9
+    assert outcome.torque_clamps <= huge_torque_commands
+    assert outcome.bag_status == 'complete'
+    assert {'object_tracker', 'left/passive_controller', 'right/passive_controller', 'wrench_qp',
+            'ds_motion_generator'} <= set(counts), counts
+    assert outcome.refused > 0.2 * MALFORMED_PER_TRIAL
+    assert outcome.held
+
+
+def test_a_200_ms_mocap_dropout_at_the_impact_keeps_the_task(tmp_path):
+    trial = prepare_trial(0, tmp_path / 'dropout')
+    assert trial.nominal['success']
+    outcome = FAULT_KINDS['mocap_dropout_200ms_impact'].run(trial)
+    print(outcome.as_dict())
+    assert outcome.fault_time == pytest.approx(trial.stage_time('impact') - 0.1)
+    assert outcome.recovered and outcome.held
+    assert outcome.nan_torques == 0 and outcome.torque_clamps == 0
