@@ -1,6 +1,11 @@
-"""pinocchio (controllers) and MuJoCo (twin) load the same description and agree on it."""
+"""pinocchio (controllers) and MuJoCo (twin) load the same description, and the configs agree."""
 
+import xml.etree.ElementTree as ElementTree
+
+from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.wrench_qp import WrenchQPConfig
 from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.description.cell_urdf import urdf_vector
 from dual_arm_control.scenario import load_scenario
 import mujoco
 import numpy as np
@@ -95,3 +100,28 @@ def test_mujoco_uses_cell_drive_parameters_and_urdf_masses(cell, mujoco_cell, ar
         f'{arm}: MuJoCo arm + tool mass {total_mass} kg, expected {expected} kg'
     limits = model.actuator_ctrlrange[index.arms[arm].actuators, 1]
     assert limits == pytest.approx(arm_model(arm, cell).torque_limits, abs=0.0)
+
+
+@pytest.mark.parametrize('arm', ['left', 'right'])
+def test_every_pad_extent_the_controllers_use_is_the_robot_descriptions_pad(cell, arm):
+    """
+    The pad is described once, in the URDF; the config fields that repeat it must agree.
+
+    The contact detector, the grasp planner, the run-in's clearance and the wrench QP's
+    centre-of-pressure limits each carry the pad's size as a parameter of their own node or
+    config. A default changed in one place and not the others would plan grasps, clearances
+    and wrenches for a pad the robot does not have.
+    """
+    pads = [collision for collision in ElementTree.parse(cell.arm(arm).urdf).iter('collision')
+            if collision.get('name') == 'pad']
+    assert len(pads) == 1
+    length, width, _ = urdf_vector(pads[0].find('geometry/box').get('size'))
+    motion = MotionGeneratorConfig()
+    qp = WrenchQPConfig()
+    np.testing.assert_allclose(motion.contact.pad_size, (length, width), rtol=1e-12)
+    np.testing.assert_allclose(2.0 * np.array([motion.reachability.pad_half_length,
+                                               motion.reachability.pad_half_width]),
+                               (length, width), rtol=1e-12)
+    assert 2.0 * motion.impact.pad_half_height == pytest.approx(width, rel=1e-12)
+    np.testing.assert_allclose(2.0 * np.array([qp.pad_half_length, qp.pad_half_width]),
+                               (length, width), rtol=1e-12)
