@@ -16,7 +16,8 @@ from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
-                                                    planned_release, predicted_landing)
+                                                    planned_landing, planned_release,
+                                                    predicted_landing)
 from dual_arm_control.scenario import load_scenario, PLACE_TASKS, TOSS_TASKS
 from dual_arm_control.trajectory_log import load_trajectory
 import numpy as np
@@ -122,11 +123,7 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
             result['landing_position'] = _vector(landing)
             predicted = predicted_landing(p_release, v_release, height, cell)
             result['landing_prediction_error'] = float(np.linalg.norm((landing - predicted)[:2]))
-            if scenario.landing_target is not None:
-                target = np.asarray(scenario.landing_target, dtype=float)
-            else:
-                target = predicted_landing(scenario.release.position, scenario.release.velocity,
-                                           height, cell)
+            target = planned_landing(scenario, cell)
             result['landing_error'] = float(np.linalg.norm((landing - target)[:2]))
         if scenario.task in PLACE_TASKS and scenario.place is not None:
             result['place_position_error'] = float(

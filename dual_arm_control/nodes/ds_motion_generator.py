@@ -27,8 +27,7 @@ from dual_arm_control.nodes.messages import (arm_command_message, fill_twist, jo
                                              stamp_ns, time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import ConfigParameters, NodeParameters
-from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
-                                                    planned_release, predicted_landing)
+from dual_arm_control.runtime.configuration import motion_config_for_scenario, planned_landing
 from dual_arm_control.runtime.inputs import ArrivalBarrier
 from dual_arm_control.runtime.motion_step import MotionGeneratorStep
 from dual_arm_control.runtime.node_settings import node_table
@@ -54,6 +53,7 @@ class DsMotionGenerator(Node):
         super().__init__(node_name, **node_options)
         cell = load_cell()
         self._scenario = None
+        self._defaults = {}
         settings = NodeParameters(
             self, node_table('ds_motion_generator').settings,
             defaults=lambda values: self._scenario_defaults(values, cell),
@@ -122,18 +122,15 @@ class DsMotionGenerator(Node):
         self.step.reconfigure(config)
 
     def _scenario_defaults(self, values, cell):
-        """Return the defaults the scenario gives: where its toss lands."""
+        """Return the defaults the scenario gives (where its toss lands), computed once."""
         if not values.get('scenario'):
             return {}
         if self._scenario is None:
             self._scenario = load_scenario(values['scenario'], cell=cell)
-        if self._scenario.landing_target is not None:
-            return {'landing_target': [float(v) for v in self._scenario.landing_target]}
-        planned = planned_release(self._scenario, cell)
-        if planned is None:
-            return {}
-        landing = predicted_landing(*planned, self._scenario.object.size[2], cell)
-        return {'landing_target': [float(v) for v in landing]}
+            landing = planned_landing(self._scenario, cell)
+            self._defaults = {} if landing is None else {
+                'landing_target': [float(v) for v in landing]}
+        return self._defaults
 
     def _landing_target_problem(self, values):
         """Re-plan the release for a new landing_target; return why it is refused, or None."""

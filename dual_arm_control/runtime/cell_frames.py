@@ -15,7 +15,7 @@ from dual_arm_control.core.arms import ARMS, joint_names
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
 from dual_arm_control.description.cell_urdf import urdf_origin, urdf_vector, WORLD_LINK
-from dual_arm_control.runtime.configuration import planned_release, predicted_landing
+from dual_arm_control.runtime.configuration import planned_landing, planned_release
 from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
 import numpy as np
 
@@ -106,13 +106,10 @@ def target_transforms(scenario, cell):
     release = planned_release(scenario, cell) if scenario.task in TOSS_TASKS else None
     if release is not None:
         transforms.append(FrameTransform(WORLD_LINK, RELEASE_FRAME, release[0], IDENTITY))
-        if scenario.landing_target is not None:
-            landing = np.asarray(scenario.landing_target, dtype=float)
-        else:
-            try:
-                landing = predicted_landing(*release, scenario.object.size[2], cell)
-            except InputError:
-                landing = None
+        try:
+            landing = planned_landing(scenario, cell)
+        except InputError:
+            landing = None
         if landing is not None:
             transforms.append(FrameTransform(WORLD_LINK, LANDING_FRAME, landing, IDENTITY))
     if scenario.task in PLACE_TASKS and scenario.place is not None:

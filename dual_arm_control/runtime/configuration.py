@@ -75,6 +75,20 @@ def planned_release(scenario, cell):
     return np.asarray(toss.release_position, dtype=float), release_velocity(toss)
 
 
+def planned_landing(scenario, cell):
+    """
+    Return where the scenario's toss lands the box centre (3,) [m], or None without a toss.
+
+    Its landing target when it gives one, else the drag-free landing of its planned release.
+    """
+    if scenario.landing_target is not None:
+        return np.asarray(scenario.landing_target, dtype=float)
+    planned = planned_release(scenario, cell)
+    if planned is None:
+        return None
+    return predicted_landing(*planned, scenario.object.size[2], cell)
+
+
 def predicted_landing(p_release, v_release, object_height, cell):
     """Return the drag-free landing point of the box centre on the cell surface below it."""
     landing = None
