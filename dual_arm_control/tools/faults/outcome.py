@@ -15,7 +15,6 @@ really got, the tool speeds and the box's fall. The rules (docs/reliability.md):
 """
 
 from dataclasses import asdict, dataclass
-import math
 
 from dual_arm_control.bags.info import inspect_bag
 from dual_arm_control.contract import ARMS
@@ -127,11 +126,6 @@ def fill_from_trajectory(outcome, data, torque_limits, dead_arms=(), fault_time=
         safe = safe and outcome.drop_height <= DROP_HEIGHT_LIMIT
     outcome.held = bool(safe and outcome.held)
     return outcome
-
-
-def finite_or_none(value):
-    """Return value, or None if it is not a finite number (for JSON)."""
-    return value if value is not None and math.isfinite(value) else None
 
 
 def bag_status(path):

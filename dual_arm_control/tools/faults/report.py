@@ -75,8 +75,8 @@ def reliability_document(out_dir, kinds):
              '| kind | trials | held | recovered | refused | NaN tau | clamps | worst tau | '
              'worst speed | worst drop | exits | bags |',
              '|---|---|---|---|---|---|---|---|---|---|---|---|']
-    for name in kinds:
-        rows = _load(out_dir, name)
+    outcomes = {name: _load(out_dir, name) for name in kinds}
+    for name, rows in outcomes.items():
         if rows:
             lines.append(kind_row(name, rows, kinds[name].runner))
     lines.append(RULES.rstrip('\n'))
@@ -85,8 +85,8 @@ def reliability_document(out_dir, kinds):
     lines += ['', '## Trials that broke their rule', '',
               '| kind | trial | seed | worst speed | worst drop | note |',
               '|---|---|---|---|---|---|']
-    for name in kinds:
-        for row in _load(out_dir, name):
+    for name, rows in outcomes.items():
+        for row in rows:
             if not row['held'] and not row['note'].startswith('skipped'):
                 lines.append(f'| `{name}` | {row["trial"]} | {row["seed"]} | '
                              f'{_number(row["worst_tool_speed"])} | '
