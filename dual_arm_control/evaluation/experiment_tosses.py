@@ -135,6 +135,13 @@ def _flight(data, result, object_height, cell):
     return data['object_position'][release:end:5]
 
 
+def _tossing_space(landings, joint, grid):
+    """Return (hull, its grid mask, the mask outside the joint space, extension [%])."""
+    hull = workspace.convex_hull(np.array(landings)) if landings else np.zeros((0, 2))
+    toss_mask = workspace.polygon_mask(hull, grid)
+    return (hull, toss_mask, *workspace.extension_percent(joint, toss_mask))
+
+
 def run_toss_workspace(out_dir, limit=None):
     """Experiment 2: landings of many tosses against the joint reachable space; Figure 8."""
     started = time.monotonic()
@@ -173,12 +180,9 @@ def run_toss_workspace(out_dir, limit=None):
     joint = workspace.joint_reachable_mask(reachable['left'], reachable['right'],
                                            0.5 * base.object.size[1], grid, WORKSPACE_Z_BAND,
                                            WORKSPACE_SLAB)
-    hull = workspace.convex_hull(np.array(landings)) if landings else np.zeros((0, 2))
-    toss_mask = workspace.polygon_mask(hull, grid)
-    added, extension = workspace.extension_percent(joint, toss_mask)
+    hull, toss_mask, added, extension = _tossing_space(landings, joint, grid)
     on_target = [toss['landing_position'][:2] for toss in tosses if toss['success']]
-    _, extension_on_target = workspace.extension_percent(joint, workspace.polygon_mask(
-        workspace.convex_hull(np.array(on_target)), grid)) if len(on_target) >= 3 else (None, 0.0)
+    extension_on_target = _tossing_space(on_target, joint, grid)[3]
     xs, ys = grid.centres()
     centre_row = joint[:, int(np.argmin(np.abs(ys)))]
     release = np.asarray(MotionGeneratorConfig().toss.release_position)
