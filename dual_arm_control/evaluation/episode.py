@@ -12,7 +12,7 @@ from dual_arm_control.core.approach import (impact_directions, object_motion_dir
                                             support_height_below)
 from dual_arm_control.core.geometry import rpy_to_matrix
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.description.cell import load_cell
+from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
@@ -29,6 +29,8 @@ METRIC_KEYS = (
     'release_direction_error', 'release_orientation_error', 'landing_position', 'landing_error',
     'cycle_time', 'place_position_error', 'energy_left', 'energy_right', 'max_slip',
     'torque_clamp_count', 'refused_message_count', 'arm_collision_count', 'box_tilt_at_place',
+    'max_joint_speed_ratio_left', 'max_joint_speed_ratio_right', 'joint_speed_limit_time_left',
+    'joint_speed_limit_time_right',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -140,6 +142,10 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         drift = np.linalg.norm(data[f'{arm}_tool_position'] - data[f'{arm}_tool_position'][0],
                                axis=1)
         result[f'max_tool_drift_{arm}'] = float(drift.max())
+        ratio, time_above, _ = metrics.joint_speed_ratio(
+            t, data[f'{arm}_dq'], arm_model(arm, cell).velocity_limits)
+        result[f'max_joint_speed_ratio_{arm}'] = ratio
+        result[f'joint_speed_limit_time_{arm}'] = time_above
     for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
         result[counter] = int(data[counter]) if counter in data else None
     collision_times = data.get('arm_collision_times', np.zeros(0))
