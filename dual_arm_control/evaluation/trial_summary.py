@@ -103,6 +103,12 @@ def failure_reason(task, metrics):
                    ('release_orientation_error', RELEASE_ORIENTATION_LIMIT, 'deg')]
         if metrics.get('t_grasp') is not None and metrics.get('t_release') is None:
             reasons.append('no release')
+        elif metrics.get('landed_in_container') is True:
+            pass
+        elif metrics.get('landed_in_container') is False:
+            offset = metrics.get('landing_error_in_container')
+            reasons.append('not in the container' + (
+                '' if offset is None else f' ({offset * 1e3:.0f} mm from its centre at the rim)'))
         elif metrics.get('t_release') is not None and metrics.get('landing_error') is None:
             reasons.append('no landing within the run')
     elif task in PLACE_TASKS:
