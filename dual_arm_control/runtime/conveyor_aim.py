@@ -68,10 +68,12 @@ def container_aim(stamp_ns, config, phase, time_in_phase, p_tools, estimate, con
     config: MotionGeneratorConfig (its conveyor, toss and release_planning); phase (core
     Phase) and time_in_phase [s] of the last tick; p_tools {arm: (3,)}; estimate, container:
     ObjectStates of the box and of the container; release_point (3,) [m]: plan only the
-    release velocity, from this point (None: over the whole release region). Once the box is
-    held, the role keeps the release point of the contact: re-planning it every tick would
-    make the planner hop between grid points while the box is carried to it, and the release
-    time, hence the aim, with it.
+    release velocity, from this point (None: the point the planner picks, over the whole
+    release region, for the container's position at the landing of the current plan). The
+    fixed point is iterated with the release point held: letting the planner pick it anew in
+    every iteration makes it hop between grid points, the release time with it, and the
+    iteration need not converge (1 cm apart in a test). Once the box is held, the role keeps
+    the release point of the contact for the same reason across ticks.
     """
     conveyor = config.conveyor
     if container is None or not container.valid:
@@ -83,18 +85,6 @@ def container_aim(stamp_ns, config, phase, time_in_phase, p_tools, estimate, con
     distance = reach_distance(p_tools, p_object, R_object, config.object_size, grasp_offset)
     nominal = np.asarray(TossConfig().release_position)
     position_at = container_landing_point(container, conveyor)
-    planning = config.release_planning
-    if release_point is not None:
-        planning = replace(planning, **{name: (float(value), float(value)) for name, value in
-                                        zip(('x_range', 'y_range', 'z_range'), release_point)})
-
-    def plan_for(target):
-        return plan_release(target, nominal, planning)
-
-    def release_in_for(plan):
-        return time_to_release(phase, time_in_phase, distance, p_object, plan.position,
-                               plan.velocity, conveyor)
-
     current_position = np.asarray(config.toss.release_position, dtype=float)
     current_velocity = release_velocity(config.toss)
     flight = landing_without_drag(current_position, current_velocity,
@@ -103,6 +93,19 @@ def container_aim(stamp_ns, config, phase, time_in_phase, p_tools, estimate, con
                                               current_position, current_velocity, conveyor)
                         + flight)
     try:
+        if release_point is None:
+            release_point = plan_release(first, nominal, config.release_planning).position
+        planning = replace(config.release_planning, **{
+            name: (float(value), float(value))
+            for name, value in zip(('x_range', 'y_range', 'z_range'), release_point)})
+
+        def plan_for(target):
+            return plan_release(target, nominal, planning)
+
+        def release_in_for(plan):
+            return time_to_release(phase, time_in_phase, distance, p_object, plan.position,
+                                   plan.velocity, conveyor)
+
         aim = aim_at_moving_container(now, position_at, plan_for, release_in_for, first,
                                       conveyor)
     except UnreachableTargetError as error:
