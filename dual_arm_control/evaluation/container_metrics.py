@@ -4,7 +4,8 @@ Metrics of a toss into a conveyor's moving container, from the ground-truth traj
 The landing is the first sample after the release at which the box's bottom has come down to
 the container's rim (its centre at rim height + half the box height): the instant it enters
 the opening or hits the rim. landing_error_in_container is the horizontal distance, in the plane
-of the opening, from the container's centre to the box's centre then. landed_in_container says
+of the opening, from the container's centre to the box's centre then (landing_offset_in_container
+the offset itself, world x and y). landed_in_container says
 where the box ended: its centre inside the opening's footprint and its bottom below the rim at
 the end of the run (in the container, not on its walls or beside it).
 """
@@ -39,15 +40,22 @@ def inside_container(object_position, container_position, half_height, conveyor)
 
 
 def container_metrics(data, conveyor, object_height, release_index):
-    """Return {landing_error_in_container, landed_in_container, t_container_landing_index}."""
+    """
+    Return the container metrics of a toss released at release_index.
+
+    Keys: landing_error_in_container, landing_offset_in_container, landed_in_container and
+    container_landing_index (the landing's sample, None without one).
+    """
     half_height = 0.5 * object_height
     landed = rim_crossing_index(data['object_position'], release_index, half_height,
                                 conveyor.rim_height)
-    error = None
+    error = offset = None
     if landed is not None:
         error = horizontal_offset(data['object_position'][landed],
                                   data['container_position'][landed])
-    return {'landing_error_in_container': error,
+        offset = [float(value) for value in (data['object_position'][landed]
+                                             - data['container_position'][landed])[:2]]
+    return {'landing_error_in_container': error, 'landing_offset_in_container': offset,
             'landed_in_container': inside_container(
                 data['object_position'][-1], data['container_position'][-1], half_height,
                 conveyor),
