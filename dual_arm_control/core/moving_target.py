@@ -35,7 +35,7 @@ class ConveyorTossConfig:
         (0.0, 1.0, 0.0), 'Direction the belt carries the container along (world): the '
         "container's estimated velocity is taken along it only.", low=-1.0, high=1.0, size=3)
     landing_y_range: tuple = setting(
-        (-0.30, 0.10), 'Belt positions (world y, low, high) where a toss may land: the throw '
+        (-0.30, 0.15), 'Belt positions (world y, low, high) where a toss may land: the throw '
         'starts when the container is predicted to be in this range at the landing.',
         unit='m', low=-3.0, high=3.0, size=2)
     fixed_point_iterations: int = setting(

@@ -92,7 +92,9 @@ def failure_reason(task, metrics):
     gap = metrics.get('contact_time_gap')
     drifts = [metrics.get(f'max_tool_drift_{arm}') for arm in ARMS]
     if gap is None and all(drift is not None and drift < STANDBY_DRIFT for drift in drifts):
-        reasons.append('no reach: the arms stayed at standby (grasp refused as out of reach)')
+        reasons.append('no reach: the arms stayed at standby (' + (
+            'the container never came in range, or the grasp was refused'
+            if 'landed_in_container' in metrics else 'grasp refused as out of reach') + ')')
     elif gap is None:
         reasons.append('no contact of both pads')
     elif gap > CONTACT_GAP_LIMIT:
