@@ -137,6 +137,15 @@ def test_time_to_release_follows_the_phase():
     assert time_to_release(Phase.RELEASE, 0.0, 0.0, obj, release, velocity, config) is None
 
 
+def test_belt_speed_disturbance_spans_its_amplitude_after_the_start():
+    times = np.linspace(1.0, 3.0, 2001)
+    speeds = np.array([disturbed_speed(0.3, t, 1.0, 0.2, 2.0, 0.7) for t in times])
+    assert speeds.max() == pytest.approx(0.36, abs=1e-4)
+    assert speeds.min() == pytest.approx(0.24, abs=1e-4)
+    assert disturbed_speed(0.3, 0.999, 1.0, 0.2, 2.0, 0.7) == 0.0
+    assert disturbed_speed(0.3, 1.5, 1.0, 0.0, 2.0, 0.7) == 0.3
+
+
 def test_belt_drive_moves_the_container_at_the_disturbed_speed():
     scenario = load_scenario('conveyor_toss', cell=CELL)
     twin = DualArmTwin(scenario, CELL)
