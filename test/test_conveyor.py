@@ -1,5 +1,5 @@
 """
-The conveyor's pieces: container tracking, the landing-time fixed point, the belt drive.
+The conveyor's pieces: container tracking, the landing-time fixed point, the belt, the metrics.
 
 Container tracking is judged against the filter's own published uncertainty: the truth moves at
 constant velocity (the filter's model, so its covariance is exact), and over many seeds and
@@ -18,6 +18,7 @@ from dual_arm_control.core.moving_target import (aim_at_moving_container, Convey
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.toss_planning import plan_release, ReleasePlanningConfig
 from dual_arm_control.description.cell import load_cell
+from dual_arm_control.evaluation.container_metrics import container_metrics
 from dual_arm_control.scenario import load_scenario
 import numpy as np
 import pytest
@@ -191,3 +192,27 @@ def test_conveyor_config_is_checked():
     scenario = load_scenario('conveyor_toss', cell=CELL)
     with pytest.raises(Exception, match='inner_size'):
         replace(scenario.conveyor, inner_size=(0.3, -0.2))
+
+
+def test_container_metrics_judge_where_the_box_passed_the_rim_and_ended():
+    conveyor = load_scenario('conveyor_toss', cell=CELL).conveyor
+    rim = conveyor.rim_height
+    container = np.array([[0.92, 0.1 - 0.01 * k, conveyor.floor_top_height] for k in range(6)])
+    inside = np.array([[0.80, 0.10, rim + 0.20], [0.86, 0.09, rim + 0.12],
+                       [0.93, 0.075, rim + 0.08], [0.94, 0.07, rim + 0.02],
+                       [0.945, 0.06, conveyor.floor_top_height + 0.08],
+                       [0.945, 0.05, conveyor.floor_top_height + 0.08]])
+    result = container_metrics({'object_position': inside, 'container_position': container},
+                               conveyor, 0.16, 0)
+    assert result['container_landing_index'] == 2
+    assert result['landing_offset_in_container'] == pytest.approx([0.01, -0.005])
+    assert result['landing_error_in_container'] == pytest.approx(np.hypot(0.01, 0.005))
+    assert result['landed_in_container'] is True
+    on_the_wall = inside.copy()
+    on_the_wall[-1] = [0.92 + 0.5 * conveyor.inner_size[0] + 0.03, 0.05, rim + 0.08]
+    assert container_metrics({'object_position': on_the_wall, 'container_position': container},
+                             conveyor, 0.16, 0)['landed_in_container'] is False
+    beside = inside.copy()
+    beside[-1] = [0.92, 0.05 - 0.5 * conveyor.inner_size[1] - 0.02, 0.23]
+    assert container_metrics({'object_position': beside, 'container_position': container},
+                             conveyor, 0.16, 0)['landed_in_container'] is False

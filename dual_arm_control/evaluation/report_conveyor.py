@@ -42,13 +42,19 @@ def conveyor_section(results, link_root):
              metrics[key].get('count', MISSING))
             for key in CONVEYOR_METRICS if key in metrics]
     modes = failure_modes(summary.get('failures', []))
-    out += [f'Scenario `{summary.get("scenario")}` (belt 0.1-0.4 m/s with a +-20 % sinusoidal '
+    out += ['`dual_arm_eval --scenario conveyor_toss --trials 100 --runner inprocess --jobs 1 '
+            '--out docs/results/conveyor_toss`; the graph run: `dual_arm_bringup --scenario '
+            'config/scenarios/conveyor_toss.yaml`.', '',
+            f'Scenario `{summary.get("scenario")}` (belt 0.1-0.4 m/s with a +-20 % sinusoidal '
             'speed disturbance, container start and belt start drawn per trial), '
             f'{summary.get("trials")} trials, runner {summary.get("runner")}, seed '
             f'{summary.get("seed")}: success rate '
             f'{number(summary.get("success_rate"), 1, 100.0, "%")}, box in the container '
             f'{number(landed_share(summary), 1, 100.0, "%")}.', '',
             table(('metric', 'median', 'p95', 'max', 'count'), rows), '',
+            'landing_error_in_container: horizontal distance of the box centre from the '
+            "container centre when the box's bottom comes down to the rim [m]; cycle_time "
+            'includes the wait at standby for the container [s].', '',
             'Failure modes (first reason of each failed trial): '
             + ('none' if not modes else '; '.join(f'{mode}: {count}'
                                                   for mode, count in modes)) + '.', '']
