@@ -147,6 +147,8 @@ LANDING_TARGET = Topic('/dual_arm/landing_target', PointStamped, QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL))
 GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, MONITOR_QOS)
+# A conveyor's container from the simulator: centre of its floor, velocity, in 'world'.
+GROUND_TRUTH_CONTAINER = Topic('/ground_truth/container', Odometry, MONITOR_QOS)
 # Total force the pad exerts on the box and its moment about the tool point, frame 'world'
 # (zero when the pad does not touch the box).
 GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, MONITOR_QOS,
@@ -181,7 +183,7 @@ ALL_TOPICS = (
     CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, LANDING_TARGET, GROUND_TRUTH_OBJECT,
     GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_TOOL, DIAGNOSTICS,
     RECORDER_STATUS, ROBOT_DESCRIPTION, TF, TF_STATIC, MOCAP_CONTAINER_POSE, CONTAINER_STATE,
-    OUTGOING_BELT_SPEED,
+    OUTGOING_BELT_SPEED, GROUND_TRUTH_CONTAINER,
 )
 
 # Services of the bridge (std_srvs/Trigger) and their names.

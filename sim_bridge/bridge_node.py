@@ -122,7 +122,7 @@ class SimBridge(Node):
     def _create_interfaces(self):
         self._robot = RobotStreams(self, container=self.twin.container is not None)
         self._diagnostics_pub = create_topic_publisher(self, contract.DIAGNOSTICS)
-        self._truth = GroundTruthStreams(self)
+        self._truth = GroundTruthStreams(self, container=self.twin.container is not None)
         for arm in contract.ARMS:
             self.create_subscription(contract.TORQUE_COMMAND.msg_type,
                                      contract.TORQUE_COMMAND.resolved(arm),

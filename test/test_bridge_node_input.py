@@ -194,10 +194,27 @@ def test_reset_service_returns_to_the_initial_state(graph):
 def test_belt_speed_topic_commands_the_conveyor(ros_domain):
     probe = GraphProbe(ros_domain)
     bridge = SimBridge(context=probe.context, parameter_overrides=[
-        Parameter('publish_ground_truth', value=False),
-        Parameter('scenario', value=str(config_path('scenarios', 'conveyor_toss.yaml')))])
+        Parameter('scenario', value=str(config_path('scenarios', 'conveyor_toss.yaml'))),
+        Parameter('lockstep_wait_for_tracker', value=False)])
     probe.executor.add_node(bridge)
+    truth = []
+    probe.node.create_subscription(contract.GROUND_TRUTH_CONTAINER.msg_type,
+                                   contract.GROUND_TRUTH_CONTAINER.name, truth.append,
+                                   contract.GROUND_TRUTH_CONTAINER.qos)
+    controllers = Controllers(probe)
     try:
+        while not truth and bridge.fri.cycles < 20:
+            cycles = bridge.fri.cycles
+            assert probe.spin_until(lambda: all(
+                states and stamp_ns(states[-1].header.stamp) == bridge.fri.awaited_ns
+                for states in controllers.states.values()), SPIN_TIMEOUT)
+            for arm in contract.ARMS:
+                controllers.send(arm, controllers.states[arm][-1].header.stamp,
+                                 bridge.twin.hold_torques(arm))
+            assert probe.spin_until(lambda: bridge.fri.cycles > cycles, SPIN_TIMEOUT)
+        assert probe.spin_until(lambda: truth, SPIN_TIMEOUT)
+        assert truth[-1].pose.pose.position.y == pytest.approx(
+            bridge.scenario.conveyor.container_start)
         publisher = probe.node.create_publisher(Float64, contract.OUTGOING_BELT_SPEED.name,
                                                 contract.OUTGOING_BELT_SPEED.qos)
         assert bridge.twin.container.commanded_speed == pytest.approx(0.25)
