@@ -19,13 +19,13 @@ from dual_arm_control.conveyor import conveyor_document, ConveyorConfig, read_co
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.impact import ImpactConfig
-from dual_arm_control.incoming_belt import (incoming_belt_document, IncomingBeltConfig,
-                                            read_incoming_belt)
 from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.robot_model import ArmModel, JOINTS_PER_ARM
 from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.core.validation import check_range, frozen_vector
 from dual_arm_control.description.cell import load_cell
+from dual_arm_control.incoming_belt import (incoming_belt_document, IncomingBeltConfig,
+                                            read_incoming_belt)
 from dual_arm_control.randomization import (Randomization, randomization_document,
                                             read_randomization)
 from dual_arm_control.resources import config_path, load_yaml, require
