@@ -49,7 +49,7 @@ def conveyor_grab_section(results, link_root):
             'toss: the paper_toss criteria).', '',
             table(('metric', 'median', 'p95', 'min', 'max', 'count'), rows), '',
             'impact_speed_relative_*: tool velocity before its contact minus the box velocity '
-            'before the first contact, along the impact direction [m/s]; belt_drag: the box\'s '
+            "before the first contact, along the impact direction [m/s]; belt_drag: the box's "
             'motion along the belt relative to the belt surface between the first contact and '
             'both pads in contact [m]; cycle_time includes the wait at standby for the box [s].',
             '', 'Failure modes (first reason of each failed trial): '
