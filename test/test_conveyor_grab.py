@@ -30,6 +30,8 @@ def test_feed_forward_adds_the_belt_velocity_to_both_tools():
     # Relative to the box, each tool closes at the DS's speed.
     assert np.allclose(velocity - belt, relative)
     assert np.allclose(velocity, [[0.0, -0.7, 0.0], [0.0, 0.3, 0.0]])
+    # The tracking gain scales the whole command that moves with the box.
+    assert np.allclose(belt_feed_forward(relative, belt, 1.06), 1.06 * velocity)
 
 
 def test_belt_velocity_filter_converges_to_the_horizontal_velocity():

@@ -308,7 +308,7 @@ class DualArmMotionGenerator:
         """Return the reach commands moving with the box on the belt (feed-forward)."""
         velocity = belt_feed_forward([commands[arm].v_world for arm in ARMS],
                                      self._belt_velocity,
-                                     self._config.moving_grab.feed_forward_gain)
+                                     self._config.moving_grab.tracking_gain)
         velocity = saturated_velocity(velocity, self._config.max_linear_speed)
         return {arm: replace(commands[arm], v_world=velocity[index])
                 for index, arm in enumerate(ARMS)}

@@ -39,12 +39,12 @@ class MovingGrabConfig:
         0.1, "Time constant of the low-pass filter on the tracker's box velocity that gives the "
         "belt velocity (the tracker's velocity is noisy and overshoots when the belt starts).",
         unit='s', low=0.0, high=5.0, low_open=True)
-    feed_forward_gain: float = setting(
-        1.09, "Gain on the box's belt velocity fed forward to the reach. The torque-controlled "
-        'arms reach about 94 % of a commanded speed, so with a gain of 1 the pad chasing the '
-        'box closes on it slower than the pad it comes toward and touches 10-14 ms later at '
-        '0.25-0.3 m/s (tuned over conveyor_grab trials; 1.12 slowed the chasing pad too much).',
-        low=0.0, high=2.0)
+    tracking_gain: float = setting(
+        1.06, 'Gain on the reach command that moves with the box (the DS velocity relative to '
+        "the box plus the box's belt velocity). The torque-controlled arms reach about 94 % of "
+        'a commanded speed, so at 1 the pad chasing the box (the faster in the world) closed on '
+        'it slower than the pad the box comes toward and touched 10-14 ms later at 0.25-0.3 '
+        'm/s (6 of 100 conveyor_grab trials; 0 at 1.06).', low=0.0, high=2.0)
     carry_time_constant: float = setting(
         0.15, "The box's belt velocity, added to the object DS at the grasp, fades out with "
         'this time constant.', unit='s', low=0.0, high=5.0, low_open=True)
@@ -87,15 +87,15 @@ def grab_wait_reason(p_predicted, config):
 
 def belt_feed_forward(velocity, v_belt, gain=1.0):
     """
-    Return the tools' velocities (2, 3) [m/s] with gain times the box's belt velocity added.
+    Return the tools' velocities (2, 3) [m/s]: gain times (velocity + the box's belt velocity).
 
     The impact DS gives the tools' velocities relative to grasp points that move with the box;
     the feed-forward makes the absolute velocity that plus the box's, so the impact speed
     along the impact direction, relative to the box, is the DS's (eqs. 1-6 in the box's frame).
-    A gain above 1 makes up for the arms' tracking shortfall on the box's part of the motion.
+    A gain above 1 makes up for the arms' tracking shortfall, which is proportional to the
+    absolute speed and so differs between the chasing pad and the one the box comes toward.
     """
-    return (np.asarray(velocity, dtype=float)
-            + gain * np.asarray(v_belt, dtype=float)[None, :])
+    return gain * (np.asarray(velocity, dtype=float) + np.asarray(v_belt, dtype=float)[None, :])
 
 
 def decayed_belt_velocity(v_belt, dt, time_constant):
