@@ -37,6 +37,7 @@ from dual_arm_control.core.orientation import (intermediate_target_orientation,
 from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, PhaseMachine,
                                           Task, task_from_name, TASK_NAMES)
 from dual_arm_control.core.reachability import ReachabilityConfig
+from dual_arm_control.core.release import clear_of_the_box
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  boosted_velocity, reach_speed,
@@ -75,6 +76,10 @@ class MotionGeneratorConfig:
     release_opening_speed: float = setting(
         0.3, 'Speed at which the pads move apart along their normals at release.',
         unit='m/s', low=0, high=2.0, low_open=True)
+    release_clearance: float = setting(
+        0.3, "Within this distance of the box's centre a retracting tool moves away from a box "
+        'that comes toward it, at its closing speed plus release_opening_speed '
+        '(core.release.clear_of_the_box); 0 switches it off.', unit='m', low=0, high=2.0)
     toss_speed_time_constant: float = setting(
         0.05, "The object's desired speed rises from the impact speed to the toss speed with "
         'this time constant after contact.', unit='s', low=0, high=5.0, low_open=True)
@@ -216,6 +221,8 @@ class DualArmMotionGenerator:
             commands = self._open_hands(R_tools, frames)
         else:
             commands = self._standby(p_tools, R_tools)
+            if phase is Phase.RETRACT:
+                commands = self._clear_of_the_box(commands, p_tools, p_object, v_object)
         toss = config.task in TOSS_TASKS
         return MotionOutput(
             phase=phase_output, commands=commands, object_velocity=object_velocity,
@@ -345,6 +352,18 @@ class DualArmMotionGenerator:
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, frames[arm].p_world_grasp)
         return commands
+
+    def _clear_of_the_box(self, commands, p_tools, p_object, v_object):
+        """Return retract commands that keep each pad out of the flying box's way."""
+        config = self._config
+        cleared = {}
+        for index, arm in enumerate(ARMS):
+            velocity = clear_of_the_box(commands[arm].v_world, p_tools[index], p_object,
+                                        v_object, config.release_clearance,
+                                        config.release_opening_speed)
+            cleared[arm] = replace(commands[arm], v_world=saturated_velocity(
+                velocity, config.max_linear_speed))
+        return cleared
 
     def _standby(self, p_tools, R_tools):
         """Return independent point-attractor commands toward each arm's standby pose."""
