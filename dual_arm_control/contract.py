@@ -127,6 +127,11 @@ CONTAINER_STATE = Topic('/container/state', Odometry, CONTROL_QOS)
 OUTGOING_BELT_SPEED = Topic('/belt/outgoing/speed', Float64, QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL))
+# Commanded speed of the incoming belt [m/s], toward world -y (it carries the box to be
+# grabbed); the twin adds the scenario's disturbance. Kept for a bridge that starts later.
+INCOMING_BELT_SPEED = Topic('/belt/incoming/speed', Float64, QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL))
 # The DS command of one arm for a tick: a one-point MultiDOFJointTrajectory in 'world' for the
 # joint '<arm>_tool': transforms[0] = the DS attractor (translation) and the desired tool
 # orientation (rotation); velocities[0] = the desired tool twist in 'world' at the tool point.
@@ -183,7 +188,7 @@ ALL_TOPICS = (
     CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, LANDING_TARGET, GROUND_TRUTH_OBJECT,
     GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_TOOL, DIAGNOSTICS,
     RECORDER_STATUS, ROBOT_DESCRIPTION, TF, TF_STATIC, MOCAP_CONTAINER_POSE, CONTAINER_STATE,
-    OUTGOING_BELT_SPEED, GROUND_TRUTH_CONTAINER,
+    OUTGOING_BELT_SPEED, GROUND_TRUTH_CONTAINER, INCOMING_BELT_SPEED,
 )
 
 # Services of the bridge (std_srvs/Trigger) and their names.

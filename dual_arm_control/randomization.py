@@ -24,6 +24,7 @@ RANDOMIZED_RANGES = {
     'belt_speed': ('m/s', -2.0, 2.0, True),
     'container_start': ('m', -3.0, 3.0, True),
     'container_start_time': ('s', 0.0, 600.0, True),
+    'belt_start_time': ('s', 0.0, 600.0, True),
 }
 
 
@@ -41,10 +42,11 @@ class Randomization:
     position noise standard deviation), mocap_latency (low, high) [s] and release_yaw (low,
     high) [deg] (yaw of the object's orientation at release, toss tasks), belt_speed (low,
     high) [m/s], container_start (low, high) [m] and container_start_time (low, high) [s]
-    (the scenario's conveyor: its speed, the container's start y and start time): ranges drawn
-    uniformly, None keeps the scenario's (or the drawn type's) value; landing_target (2,)
-    half-ranges [m] of the offset of the scenario's landing target along world x and y
-    (toss_to_target), or None. The controllers are
+    (the scenario's conveyor: its speed, the container's start y and start time; belt_speed
+    is also the incoming belt's speed) and belt_start_time (low, high) [s] (when the incoming
+    belt starts): ranges drawn uniformly, None keeps the scenario's (or the drawn type's)
+    value; landing_target (2,) half-ranges [m] of the offset of the scenario's landing target
+    along world x and y (toss_to_target), or None. The controllers are
     given the drawn object (the scenario is their prior as well as the twin's truth).
     """
 
@@ -60,6 +62,7 @@ class Randomization:
     belt_speed: object = None
     container_start: object = None
     container_start_time: object = None
+    belt_start_time: object = None
     landing_target: object = None
 
     def __post_init__(self):

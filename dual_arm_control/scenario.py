@@ -24,6 +24,8 @@ from dual_arm_control.core.robot_model import ArmModel, JOINTS_PER_ARM
 from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.core.validation import check_range, frozen_vector
 from dual_arm_control.description.cell import load_cell
+from dual_arm_control.incoming_belt import (incoming_belt_document, IncomingBeltConfig,
+                                            read_incoming_belt)
 from dual_arm_control.randomization import (Randomization, randomization_document,
                                             read_randomization)
 from dual_arm_control.resources import config_path, load_yaml, require
@@ -126,7 +128,8 @@ class Scenario:
     object centre at placing (3,) [m] or None; speeds (Speeds); perturbations (tuple of
     Perturbation, sorted by time); duration [s]; initial_configuration {arm: (7,) [rad]};
     sensors (SensorConfig); conveyor (ConveyorConfig or None: the outgoing belt and its
-    container; toss tasks then aim into the moving container); randomization (Randomization
+    container; toss tasks then aim into the moving container); incoming_belt
+    (IncomingBeltConfig or None: the belt the box arrives on); randomization (Randomization
     or None: a template for dual_arm_eval, see sample_trial; a single run ignores it); path
     (source file or None).
     """
@@ -145,6 +148,7 @@ class Scenario:
     perturbations: tuple = ()
     sensors: SensorConfig = field(default_factory=SensorConfig)
     conveyor: object = None
+    incoming_belt: object = None
     randomization: object = None
     path: object = None
 
@@ -173,6 +177,9 @@ class Scenario:
             raise ConfigError(f'initial_configuration needs the arms {ARMS}')
         if self.conveyor is not None and not isinstance(self.conveyor, ConveyorConfig):
             raise ConfigError(f'conveyor must be a ConveyorConfig or None, got {self.conveyor!r}')
+        if self.incoming_belt is not None and not isinstance(self.incoming_belt,
+                                                             IncomingBeltConfig):
+            raise ConfigError('incoming_belt must be an IncomingBeltConfig or None')
         if self.randomization is not None and not isinstance(self.randomization,
                                                              Randomization):
             raise ConfigError(f'randomization must be a Randomization or None, got '
@@ -266,7 +273,8 @@ def load_scenario(path, cell=None, catalogue_path=None):
     data = load_yaml(path)
     reader.check_keys(data, ('name', 'seed', 'task', 'object', 'release', 'landing_target',
                              'release_orientation', 'place', 'speeds', 'perturbations', 'duration',
-                             'initial_configuration', 'sensors', 'conveyor', 'randomization'), '')
+                             'initial_configuration', 'sensors', 'conveyor', 'incoming_belt',
+                             'randomization'), '')
     name = require(data, 'name', path, str)
     seed = require(data, 'seed', path, int)
     if isinstance(seed, bool) or seed < 0:
@@ -330,6 +338,7 @@ def load_scenario(path, cell=None, catalogue_path=None):
                              if 'release_orientation' in data else None),
         perturbations=tuple(sorted(perturbations, key=lambda item: item.time)),
         sensors=read_sensor_config(reader, data), conveyor=read_conveyor(reader, data),
+        incoming_belt=read_incoming_belt(reader, data),
         randomization=read_randomization(reader, data, catalogue_path),
         path=path)
 
@@ -377,6 +386,8 @@ def scenario_document(scenario):
                'force_bias': numbers(ft.force_bias), 'torque_bias': numbers(ft.torque_bias)}}
     if scenario.conveyor is not None:
         document['conveyor'] = conveyor_document(scenario.conveyor)
+    if scenario.incoming_belt is not None:
+        document['incoming_belt'] = incoming_belt_document(scenario.incoming_belt)
     if scenario.randomization is not None:
         document['randomization'] = randomization_document(scenario.randomization)
     return document

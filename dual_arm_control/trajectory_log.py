@@ -33,6 +33,10 @@ CONTAINER_FIELDS = {
     'container_position': ((3,), 'centre of the container floor in world [m]'),
     'container_velocity': ((3,), 'container linear velocity in world [m/s]'),
 }
+# The incoming belt of a scenario that has one (optional in a log: absent without one).
+INCOMING_BELT_FIELDS = {
+    'incoming_belt_velocity': ((3,), 'velocity of the incoming belt surface in world [m/s]'),
+}
 COUNTER_FIELDS = ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count')
 # The arm collisions of the episode (optional in a log: older logs lack them).
 COLLISION_FIELDS = {
@@ -49,7 +53,7 @@ class TrajectoryRecorder:
         for arm in ARMS:
             for name in ARM_FIELDS:
                 self._rows[f'{arm}_{name}'] = []
-        for name in (*OBJECT_FIELDS, *CONTAINER_FIELDS):
+        for name in (*OBJECT_FIELDS, *CONTAINER_FIELDS, *INCOMING_BELT_FIELDS):
             self._rows[name] = []
         self.counters = dict.fromkeys(COUNTER_FIELDS, 0)
         self._twin = None
@@ -82,11 +86,14 @@ class TrajectoryRecorder:
         if container is not None:
             for name, value in zip(CONTAINER_FIELDS, container.pose(twin.data)):
                 self._rows[name].append(value)
+        belt = getattr(twin, 'incoming_belt', None)
+        if belt is not None:
+            self._rows['incoming_belt_velocity'].append(belt.surface_velocity())
 
     def arrays(self):
         """Return the log as a dict of NumPy arrays, first axis = sample."""
         data = {name: np.array(rows) for name, rows in self._rows.items()
-                if rows or name not in CONTAINER_FIELDS}
+                if rows or name not in (*CONTAINER_FIELDS, *INCOMING_BELT_FIELDS)}
         for arm in ARMS:
             data[f'{arm}_pad_contact'] = data[f'{arm}_pad_contact'].astype(bool)
         for name, value in self.counters.items():

@@ -21,7 +21,7 @@ TRIAL_DRAWS = ('object_x', 'object_y', 'object_yaw', 'mass', 'size_scale', 'fric
 # noise seed) stay those of the files written before them.
 LATER_DRAWS = ('object_type', 'mocap_latency', 'release_yaw')
 # The conveyor's draws, from a third generator.
-CONVEYOR_DRAWS = ('belt_speed', 'container_start', 'container_start_time')
+CONVEYOR_DRAWS = ('belt_speed', 'container_start', 'container_start_time', 'belt_start_time')
 # The landing target's offsets, from a fourth generator.
 TARGET_DRAWS = ('landing_target_x', 'landing_target_y')
 
@@ -110,12 +110,17 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
             container_start=from_range('container_start', conveyor.container_start),
             container_start_time=from_range('container_start_time',
                                             conveyor.container_start_time))
+    incoming = scenario.incoming_belt
+    if incoming is not None:
+        incoming = replace(incoming, speed=from_range('belt_speed', incoming.speed),
+                           start_time=from_range('belt_start_time', incoming.start_time))
     landing_target = scenario.landing_target
     if spec.landing_target is not None and landing_target is not None:
         landing_target = np.array(landing_target, dtype=float) + [
             offset('landing_target_x', spec.landing_target[0]),
             offset('landing_target_y', spec.landing_target[1]), 0.0]
     return replace(scenario, seed=trial_seed, object=trial_object, conveyor=conveyor,
+                   incoming_belt=incoming,
                    landing_target=raised(landing_target), place=raised(scenario.place),
                    release_orientation=release_orientation,
                    sensors=replace(scenario.sensors, mocap=mocap), randomization=None,

@@ -20,8 +20,7 @@ import math
 
 import mujoco
 import numpy as np
-from sim_bridge.scene import (build_spec, CONTACT_SOLIMP, CONTACT_SOLREF, OBJECT_BODY,
-                              scene_contact, scene_index)
+from sim_bridge.scene import CONTACT_SOLIMP, CONTACT_SOLREF, OBJECT_BODY, scene_contact
 
 CONTAINER_BODY = 'container'
 # [kg]: the drive sets the container's motion; a mass only keeps the model regular.
@@ -51,15 +50,6 @@ def container_geoms(config):
                                                                    0.5 * h)),
             ('wall_right', (0.0, -0.5 * inner_y - 0.5 * t, wall_z), (0.5 * inner_x, 0.5 * t,
                                                                      0.5 * h))]
-
-
-def build_cell_model(cell, scenario):
-    """Compile the cell of a scenario, with its conveyor if it has one: (MjModel, SceneIndex)."""
-    spec = build_spec(cell, scenario.object)
-    if scenario.conveyor is not None:
-        add_conveyor(spec, scenario.conveyor)
-    model = spec.compile()
-    return model, scene_index(model)
 
 
 def add_conveyor(spec, config):

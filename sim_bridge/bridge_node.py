@@ -46,6 +46,7 @@ import numpy as np
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from sim_bridge.belt_speeds import subscribe_belt_speeds
 from sim_bridge.bridge_diagnostics import counter_values, diagnostics_message
 from sim_bridge.ground_truth import GroundTruthStreams
 from sim_bridge.lockstep_start import GraphReadiness
@@ -136,10 +137,7 @@ class SimBridge(Node):
                                 ('container', contract.CONTAINER_STATE)):
                 self.create_subscription(topic.msg_type, topic.name, lambda msg, name=name:
                                          self._on_tracker_answer(name, msg), topic.qos)
-        if self.twin.container is not None:
-            self.create_subscription(contract.OUTGOING_BELT_SPEED.msg_type,
-                                     contract.OUTGOING_BELT_SPEED.name, self._on_belt_speed,
-                                     contract.OUTGOING_BELT_SPEED.qos)
+        subscribe_belt_speeds(self, self.twin, self._warn_throttled)
 
     def _streams(self):
         """Return every stream the bridge publishes each cycle."""
@@ -186,12 +184,6 @@ class SimBridge(Node):
                 f'{arm}: no torque command for the last FRI cycle (watchdog holds so far: '
                 f'{self.fri.counters[arm].watchdog_holds})'))
         self._advance()
-
-    def _on_belt_speed(self, msg):
-        try:
-            self.twin.set_belt_speed(msg.data)
-        except DualArmControlError as error:
-            self._warn_throttled(('belt', 'speed'), f'belt speed {msg.data!r} refused: {error}')
 
     def _on_tracker_answer(self, name, msg):
         if self._awaited_answers:

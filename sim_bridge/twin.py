@@ -20,7 +20,8 @@ from dual_arm_control.runtime.node_settings import FRI_PERIOD, FRI_PERIODS, TORQ
 import mujoco
 import numpy as np
 from sim_bridge.arm_collisions import ArmCollisionMonitor
-from sim_bridge.belt import build_cell_model, ContainerDrive
+from sim_bridge.belt import ContainerDrive
+from sim_bridge.incoming_belt import build_cell_model, IncomingBeltDrive
 from sim_bridge.pad_forces import pad_wrench
 from sim_bridge.scene import PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
 from sim_bridge.twin_samples import JointSample, MocapSample, StepReport, TwinState
@@ -70,6 +71,8 @@ class DualArmTwin:
         self._collisions = ArmCollisionMonitor(self.model, self.index)
         self.container = None if scenario.conveyor is None else ContainerDrive(
             self.model, scenario.conveyor, scenario.seed, mocap)
+        self.incoming_belt = None if scenario.incoming_belt is None else IncomingBeltDrive(
+            self.model, scenario.incoming_belt, scenario.seed)
         self.reset()
 
     @property
@@ -98,6 +101,12 @@ class DualArmTwin:
             raise InputError('this scenario has no conveyor')
         self.container.set_speed(float(finite_array('belt speed', [speed], (1,))[0]))
 
+    def set_incoming_belt_speed(self, speed):
+        """Command the incoming belt's speed [m/s] (toward world -y); InputError without one."""
+        if self.incoming_belt is None:
+            raise InputError('this scenario has no incoming belt')
+        self.incoming_belt.set_speed(float(finite_array('belt speed', [speed], (1,))[0]))
+
     @property
     def arm_collisions(self):
         """Every ArmCollision since reset(), in order."""
@@ -120,6 +129,8 @@ class DualArmTwin:
         self._container_pending = deque()
         if self.container is not None:
             self.container.reset(self.data)
+        if self.incoming_belt is not None:
+            self.incoming_belt.reset(self.data)
         mujoco.mj_forward(self.model, self.data)
         self._tick = 0
         self._next_sample = 0
@@ -157,6 +168,8 @@ class DualArmTwin:
             self._apply_due_perturbations()
             if self.container is not None:
                 self.container.drive(self.data, self.time, PHYSICS_TIMESTEP)
+            if self.incoming_belt is not None:
+                self.incoming_belt.drive(self.data, self.time)
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
             self._sample_mocap()
@@ -282,7 +295,8 @@ class DualArmTwin:
                         copy.deepcopy(self._ft_rng.bit_generator.state)),
             colliding_pairs=self._collisions.colliding_pairs,
             container=None if self.container is None else self.container.state(),
-            container_pending=tuple(self._container_pending))
+            container_pending=tuple(self._container_pending),
+            incoming_belt=None if self.incoming_belt is None else self.incoming_belt.state())
 
     def set_state(self, state):
         """Restore a snapshot taken by state()."""
@@ -301,6 +315,8 @@ class DualArmTwin:
         self._container_pending = deque(state.container_pending)
         if self.container is not None:
             self.container.set_state(state.container)
+        if self.incoming_belt is not None:
+            self.incoming_belt.set_state(state.incoming_belt)
 
     def _arm(self, arm):
         if arm not in ARMS:

@@ -54,3 +54,4 @@ class TwinState:
     colliding_pairs: frozenset
     container: object = None
     container_pending: tuple = ()
+    incoming_belt: object = None

@@ -229,3 +229,28 @@ def test_belt_speed_topic_commands_the_conveyor(ros_domain):
         probe.executor.remove_node(bridge)
         bridge.destroy_node()
         probe.close()
+
+
+def test_incoming_belt_speed_topic_commands_the_incoming_belt(ros_domain):
+    probe = GraphProbe(ros_domain)
+    bridge = SimBridge(context=probe.context, parameter_overrides=[
+        Parameter('scenario', value=str(config_path('scenarios', 'conveyor_grab.yaml'))),
+        Parameter('lockstep_wait_for_tracker', value=False)])
+    probe.executor.add_node(bridge)
+    try:
+        belt = bridge.twin.incoming_belt
+        assert bridge.twin.container is None
+        assert belt.commanded_speed == pytest.approx(0.2)
+        publisher = probe.node.create_publisher(Float64, contract.INCOMING_BELT_SPEED.name,
+                                                contract.INCOMING_BELT_SPEED.qos)
+        publisher.publish(Float64(data=0.12))
+        assert probe.spin_until(lambda: belt.commanded_speed == pytest.approx(0.12),
+                                SPIN_TIMEOUT)
+        publisher.publish(Float64(data=math.inf))
+        publisher.publish(Float64(data=0.28))
+        assert probe.spin_until(lambda: belt.commanded_speed == pytest.approx(0.28),
+                                SPIN_TIMEOUT)
+    finally:
+        probe.executor.remove_node(bridge)
+        bridge.destroy_node()
+        probe.close()

@@ -282,8 +282,27 @@ def test_report_renders_the_numbers_from_the_json_files(tmp_path):
 def test_report_of_an_empty_results_directory(tmp_path):
     text = report.render_report(report.load_results(tmp_path))
     assert text.count('Not run') == (len(paper_results.EXPERIMENTS) + 1 + len(CATALOGUE_FOLDERS)
-                                     + 1)
+                                     + 2)
     assert 'Not run: `conveyor_toss/summary.json` is missing' in text
+    assert 'Not run: `conveyor_grab/summary.json` is missing' in text
+
+
+def test_report_renders_the_conveyor_grab_batch_and_graph_run(tmp_path):
+    folder = tmp_path / 'conveyor_grab'
+    (folder / 'graph').mkdir(parents=True)
+    (folder / 'summary.json').write_text(json.dumps({
+        'scenario': 'config/scenarios/conveyor_grab.yaml', 'trials': 100, 'runner': 'inprocess',
+        'seed': 1, 'success_rate': 0.97, 'failures': [],
+        'metrics': {'belt_drag': {'median': 0.0007, 'p95': 0.0017, 'min': 0.0, 'max': 0.0027,
+                                  'count': 100}}}))
+    (folder / 'graph' / 'metrics.json').write_text(json.dumps({
+        'success': True, 'contact_time_gap': 0.004, 'impact_speed_relative_left': 0.444,
+        'impact_speed_relative_right': 0.519, 'belt_drag': 0.0018, 'landing_error': 0.009}))
+    text = report.render_report(report.load_results(tmp_path))
+    assert '6b. Grab from the moving incoming belt' in text
+    assert 'success rate 97.0 %' in text
+    assert '| belt_drag | 0.0007 | 0.0017 | 0.0000 | 0.0027 | 100 |' in text
+    assert 'contact gap 4.0 ms, relative impact speeds 0.444 / 0.519 m/s' in text
 
 
 def test_command_line_refuses_bad_values(capsys):

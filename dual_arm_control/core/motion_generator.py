@@ -27,6 +27,8 @@ from dual_arm_control.core.manipulation import (cooperative_manipulation_velocit
                                                 release_velocity, toss_geometry, toss_velocity,
                                                 TossConfig)
 from dual_arm_control.core.motion_signals import ArmCommand, MotionOutput
+from dual_arm_control.core.moving_grab import (belt_feed_forward, decayed_belt_velocity,
+                                               filtered_belt_velocity, MovingGrabConfig)
 from dual_arm_control.core.moving_target import ConveyorTossConfig
 from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_coupling,
@@ -53,8 +55,8 @@ class MotionGeneratorConfig:
 
     standby_positions (2, 3) [m] and standby_rotations (2, 3, 3) are the tool standby poses in the
     world, rows left, right (set by the cell, not tunable); coordination, impact, toss, lift,
-    place, speed, orientation, phases, contact, ft, reachability, release_planning and conveyor
-    are the component configs (see their modules).
+    place, speed, orientation, phases, contact, ft, reachability, release_planning, conveyor
+    and moving_grab are the component configs (see their modules).
     """
 
     task: object = setting(
@@ -94,6 +96,7 @@ class MotionGeneratorConfig:
     reachability: ReachabilityConfig = field(default_factory=ReachabilityConfig)
     release_planning: ReleasePlanningConfig = field(default_factory=ReleasePlanningConfig)
     conveyor: ConveyorTossConfig = field(default_factory=ConveyorTossConfig)
+    moving_grab: MovingGrabConfig = field(default_factory=MovingGrabConfig)
 
     def __post_init__(self):
         object.__setattr__(self, 'task', task_from_name(self.task))
@@ -120,12 +123,18 @@ class DualArmMotionGenerator:
         self._release_object_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
         self._grasp_roll = 0.0
+        self._belt_velocity = np.zeros(3)
         self.reconfigure(config)
 
     @property
     def config(self):
         """Return the current configuration."""
         return self._config
+
+    @property
+    def belt_velocity(self):
+        """Return the box's filtered belt velocity (3,) [m/s] (moving grab only, else 0)."""
+        return self._belt_velocity.copy()
 
     @property
     def phase(self):
@@ -193,6 +202,9 @@ class DualArmMotionGenerator:
         phase = phase_output.phase
         if phase_output.transition is not None and phase is Phase.REACH:
             self._reach_speed.reset(0.0)
+        if config.moving_grab.enabled and phase in (Phase.STANDBY, Phase.REACH):
+            self._belt_velocity = filtered_belt_velocity(
+                self._belt_velocity, v_object, dt, config.moving_grab.velocity_time_constant)
         object_velocity = self._object_velocity(p_object, v_object, phase, dt)
         omega_object = self._object_angular_velocity(R_object, phase)
         directions = impact_directions(config, frames, object_velocity,
@@ -200,6 +212,8 @@ class DualArmMotionGenerator:
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
             commands = yield_to_single_contact(commands, contacts, frames)
+            if config.moving_grab.enabled:
+                commands = self._follow_belt(commands)
         elif phase in (Phase.CONTACT, Phase.MANIPULATE):
             commands = self._carry(p_tools, R_tools, frames, object_velocity, omega_object)
             self._release_object_velocity = object_velocity
@@ -234,6 +248,10 @@ class DualArmMotionGenerator:
         else:
             task_speed = config.lift.max_speed
         carried = phase in (Phase.CONTACT, Phase.MANIPULATE)
+        belt = np.zeros(3)
+        if carried and config.moving_grab.enabled:
+            belt = self._belt_velocity = decayed_belt_velocity(
+                self._belt_velocity, dt, config.moving_grab.carry_time_constant)
         if carried:
             speed = self._object_speed.update(task_speed, dt)
         else:
@@ -243,6 +261,8 @@ class DualArmMotionGenerator:
         if config.task in TOSS_TASKS:
             velocity = boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity,
                                         speed)
+            if config.moving_grab.enabled:
+                velocity = velocity + belt
             if phase is Phase.MANIPULATE:
                 return self._toss_feedback.update(velocity, v_object, dt)
             return velocity
@@ -290,6 +310,15 @@ class DualArmMotionGenerator:
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, grasp_points[index])
         return commands
+
+    def _follow_belt(self, commands):
+        """Return the reach commands moving with the box on the belt (feed-forward)."""
+        velocity = belt_feed_forward([commands[arm].v_world for arm in ARMS],
+                                     self._belt_velocity,
+                                     self._config.moving_grab.tracking_gain)
+        velocity = saturated_velocity(velocity, self._config.max_linear_speed)
+        return {arm: replace(commands[arm], v_world=velocity[index])
+                for index, arm in enumerate(ARMS)}
 
     def _carry(self, p_tools, R_tools, frames, object_velocity, omega_object):
         """Return the commands that carry the object with the desired object twist (eq. 8)."""

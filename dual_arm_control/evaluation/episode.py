@@ -15,6 +15,7 @@ from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.evaluation.container_metrics import container_metrics
+from dual_arm_control.evaluation.grab_metrics import grab_metrics, grab_succeeded
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
                                                     planned_landing, planned_release,
@@ -32,6 +33,7 @@ METRIC_KEYS = (
     'torque_clamp_count', 'refused_message_count', 'arm_collision_count', 'box_tilt_at_place',
     'max_joint_speed_ratio_left', 'max_joint_speed_ratio_right', 'joint_speed_limit_time_left',
     'joint_speed_limit_time_right', 'landing_error_in_container', 'landed_in_container',
+    'impact_speed_relative_left', 'impact_speed_relative_right', 'belt_drag',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -88,6 +90,8 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
             velocity, contact_index[arm], directions[arm])
         result[f'impact_speed_along_normal_{arm}'] = metrics.impact_speed(
             velocity, contact_index[arm], normals[arm])
+    if scenario.incoming_belt is not None:
+        result.update(grab_metrics(data, contact_index, directions))
     if None not in contact_index.values():
         # Rounded to whole nanoseconds: the stamps are multiples of the FRI period, and a 10 ms
         # gap must not read 0.010000000000000009 s.
@@ -173,6 +177,9 @@ def _success(scenario, result):
     grasped = gap is not None and gap <= CONTACT_GAP_LIMIT and result['t_grasp'] is not None
     no_slip = result['max_slip'] is not None and result['max_slip'] <= SLIP_LIMIT
     if result['arm_collision_count']:
+        return False
+    if scenario.incoming_belt is not None and not grab_succeeded(result,
+                                                                 scenario.speeds.impact):
         return False
     if scenario.task in TOSS_TASKS and scenario.conveyor is not None:
         return grasped and no_slip and bool(result['landed_in_container'])

@@ -13,6 +13,8 @@ from pathlib import Path
 
 from dual_arm_control.evaluation.paper_results import EXPERIMENTS, RESULTS_FILE
 from dual_arm_control.evaluation.report_conveyor import conveyor_section, load_conveyor
+from dual_arm_control.evaluation.report_conveyor_grab import (conveyor_grab_section,
+                                                              load_conveyor_grab)
 from dual_arm_control.evaluation.report_format import MISSING, number, table
 from dual_arm_control.evaluation.report_sections import (CATALOGUE_FOLDERS,
                                                          catalogue_section, fast_toss_section,
@@ -41,6 +43,7 @@ def load_results(results_dir):
                                                                 'robustness/displaced')
         for path in sorted((results_dir / folder).glob('*.png'))]
     loaded['conveyor'] = load_conveyor(results_dir, _read)
+    loaded['conveyor_grab'] = load_conveyor_grab(results_dir, _read)
     return loaded
 
 
@@ -73,7 +76,7 @@ def render_report(results, link_root='results'):
         '']
     for section in (fast_toss_section, workspace_section, place_vs_toss_section,
                     robustness_section, catalogue_section, toss_to_target_section,
-                    conveyor_section):
+                    conveyor_section, conveyor_grab_section):
         lines += section(results, link_root)
     return '\n'.join(lines).rstrip() + '\n'
 

@@ -54,12 +54,15 @@ def randomized_values(scenario, trial):
         values['mocap noise [mm]'] = 1000.0 * trial.sensors.mocap.position_noise
     if spec.mocap_latency is not None:
         values['mocap latency [ms]'] = 1000.0 * trial.sensors.mocap.latency
+    belt = trial.conveyor if trial.conveyor is not None else trial.incoming_belt
     if spec.belt_speed is not None:
-        values['belt speed [m/s]'] = trial.conveyor.speed
+        values['belt speed [m/s]'] = belt.speed
     if spec.container_start is not None:
         values['container start y [m]'] = trial.conveyor.container_start
     if spec.container_start_time is not None:
         values['belt start time [s]'] = trial.conveyor.container_start_time
+    if spec.belt_start_time is not None:
+        values['belt start time [s]'] = trial.incoming_belt.start_time
     return values
 
 

@@ -37,6 +37,8 @@ def motion_config_for_scenario(scenario, cell, base=None):
     config = replace(config, toss=toss)
     if scenario.landing_target is not None:
         config = config_for_landing_target(config, scenario.landing_target)
+    if scenario.incoming_belt is not None:
+        config = replace(config, moving_grab=replace(config.moving_grab, enabled=True))
     if scenario.conveyor is not None and scenario.task in TOSS_TASKS:
         config = replace(config, conveyor=replace(
             config.conveyor, enabled=True, landing_height=float(

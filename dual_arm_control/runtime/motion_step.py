@@ -20,7 +20,10 @@ up to the release aims the toss at the container's predicted position at the pre
 (runtime.conveyor_aim, given the tracker's container estimate): the start waits at standby,
 event 'waiting_for_container' with the reason, until the container will be in the landing
 range at the landing, then event 'container_in_range'; after the start a tick that cannot aim
-keeps the previous aim. A tick whose inputs the generator
+keeps the previous aim. With a box on the incoming belt (config.moving_grab.enabled) the start
+waits likewise, event 'waiting_for_box', until the box is predicted in the grab range a reach
+duration ahead and the grasp there is reachable (planned at that predicted pose), then event
+'box_in_range'. A tick whose inputs the generator
 refuses is answered with a stop command (zero velocity at the
 current tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
 """
@@ -32,6 +35,7 @@ from dual_arm_control.core.ballistics import UnreachableTargetError
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
 from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement, ObjectMeasurement
+from dual_arm_control.core.moving_grab import grab_wait_reason, predicted_box_position
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.reachability import plan_grasp
 from dual_arm_control.runtime.configuration import config_for_landing_target
@@ -181,15 +185,20 @@ class MotionGeneratorStep:
         requested = self._requests['start']
         start = requested or (not self._started and has_object
                               and stamp_ns >= self._auto_start_ns)
+        wait_events = ('waiting_for_container', 'container_in_range')
+        moving_grab = self._generator.config.moving_grab.enabled
+        if start and has_object and moving_grab and not aim_reason:
+            wait_events = ('waiting_for_box', 'box_in_range')
+            aim_reason = self._plan_moving_grasp(joints, estimate, stamp_ns)
         container_events = ()
         if start and aim_reason:
-            container_events = () if self.waiting_reason else ('waiting_for_container',)
+            container_events = () if self.waiting_reason else wait_events[:1]
             self.waiting_reason, start = aim_reason, False
         elif start and self.waiting_reason:
-            container_events, self.waiting_reason = ('container_in_range',), ''
+            container_events, self.waiting_reason = wait_events[1:], ''
         self._started = self._started or start
         refused_start = ''
-        if start and has_object:
+        if start and has_object and not moving_grab:
             refused_start = self._plan_grasp(joints, estimate, stamp_ns)
             start = not refused_start
         try:
@@ -237,6 +246,30 @@ class MotionGeneratorStep:
         if self.container_aim.config is not None:
             self._generator.reconfigure(self.container_aim.config)
         return self.container_aim.reason
+
+    def _plan_moving_grasp(self, joints, estimate, stamp_ns):
+        """
+        Plan the grasp of a box on the belt where it will be at the contact; return why not.
+
+        The box is predicted a reach duration ahead at the generator's filtered belt velocity
+        (core.moving_grab); outside the grab range, or out of the arms' reach there, the reach
+        waits (the reason says which).
+        """
+        config = self._generator.config
+        position, rotation, _, _ = estimate_at(estimate, stamp_ns)
+        predicted = predicted_box_position(position, self._generator.belt_velocity,
+                                           config.moving_grab.reach_duration)
+        reason = grab_wait_reason(predicted, config.moving_grab)
+        if reason or not config.reachability.enabled:
+            return reason
+        self.grasp_plan = plan_grasp(
+            self._models, {arm: joints[arm].position for arm in ARMS}, predicted, rotation,
+            np.asarray(config.object_size), config.reachability,
+            config.impact.support_clearance)
+        if not self.grasp_plan.reachable:
+            return f'grasp at the predicted contact out of reach: {self.grasp_plan.reason}'
+        self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
+        return ''
 
     def _plan_grasp(self, joints, estimate, stamp_ns):
         """Check the grasp before the reach; use its shift, or return why it is refused."""
