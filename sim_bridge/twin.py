@@ -21,6 +21,7 @@ from dual_arm_control.runtime.node_settings import FRI_PERIOD, FRI_PERIODS, TORQ
 import mujoco
 import numpy as np
 from sim_bridge.arm_collisions import ArmCollisionMonitor
+from sim_bridge.safety_hold import hold_command
 from sim_bridge.scene import build_model, PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
 
 # A sample or perturbation due at time t is taken at the first physics tick with
@@ -110,7 +111,6 @@ class DualArmTwin:
         self._substeps = int(round(fri_period / PHYSICS_TIMESTEP))
         self._torque_limits = {arm: self.model.actuator_ctrlrange[self.index.arms[arm].actuators,
                                                                   1].copy() for arm in ARMS}
-        self._hold_damping = {arm: self.cell.arm(arm).hold_damping for arm in ARMS}
         mocap = scenario.sensors.mocap
         self._sample_period_ticks = 1.0 / (mocap.rate_hz * PHYSICS_TIMESTEP)
         self._latency = mocap.latency
@@ -199,18 +199,19 @@ class DualArmTwin:
         self._collision_log.extend(collisions)
         return StepReport(clamped=clamped, applied=applied, arm_collisions=tuple(collisions))
 
-    def hold_torques(self, arm):
+    def hold_torques(self, arm, stop_position=None):
         """
         Return the (7,) command [N m] that makes an arm hold, as the robot's safety stop would.
 
-        Gravity compensation minus hold_damping (config/cell.yaml) * joint velocity; with the
-        gravity_compensated interface the robot adds the gravity itself, so only the damping
-        is commanded.
+        sim_bridge.safety_hold: gravity compensation, hold_stiffness (config/cell.yaml) toward
+        stop_position (7,) [rad] (None: no stiffness), minus hold_damping * joint velocity.
         """
-        damping = self._hold_damping[arm] * self.data.qvel[self.index.arms[self._arm(arm)].dof]
-        if self.torque_interface == 'gravity_compensated':
-            return -damping
-        return self.gravity_torques(arm) - damping
+        index = self.index.arms[self._arm(arm)]
+        description = self.cell.arm(arm)
+        return hold_command(self.gravity_torques(arm), self.data.qpos[index.qpos],
+                            self.data.qvel[index.dof], description.hold_damping,
+                            description.hold_stiffness, stop_position, self._torque_limits[arm],
+                            self.torque_interface == 'gravity_compensated')
 
     def gravity_torques(self, arm):
         """Return the (7,) joint torques [N m] that balance gravity (MuJoCo's own model)."""
