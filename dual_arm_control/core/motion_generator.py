@@ -5,6 +5,11 @@ Composes the paper's pieces into the per-arm commands of one DS tick (section II
 A): FT compensation and contact detection, the phase machine, the coordinated modulated DS with
 impact (eqs. 1-6), the object DS of the task (eqs. 7-9, lift, place), the orientation DS, and
 release / retract motions. Time enters as dt; nothing reads a clock.
+
+halt() stops the task where it is, for good (until a reset or go-home request): used when an
+arm's controller is lost, whose arm the robot then holds in place. The phase no longer changes;
+a grasped box stays where it is, squeezed by the living arm against the held one (the carry's
+commands with a zero object twist), and otherwise both tools hold their poses at the halt.
 """
 
 from dataclasses import dataclass, field
@@ -32,7 +37,7 @@ from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_ds_angular_velocity,
                                                OrientationDsConfig)
 from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, PhaseMachine,
-                                          Task, task_from_name, TASK_NAMES)
+                                          PhaseMachineOutput, Task, task_from_name, TASK_NAMES)
 from dual_arm_control.core.reachability import ReachabilityConfig
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
@@ -113,6 +118,7 @@ class DualArmMotionGenerator:
         self._release_object_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
         self._grasp_roll = 0.0
+        self._halt = None
         self.reconfigure(config)
 
     @property
@@ -134,6 +140,16 @@ class DualArmMotionGenerator:
         """Grasp the faces at offset (3,) [m] from their centres, pads rolled by roll [rad]."""
         self._grasp_offset = finite_array('grasp_offset', offset, (3,)).copy()
         self._grasp_roll = float(finite_array('grasp_roll', roll, ()))
+
+    @property
+    def halted(self):
+        """Return True once halt() stopped the task (until a reset or go-home request)."""
+        return self._halt is not None
+
+    def halt(self):
+        """Stop the task where it is from the next tick on (module text)."""
+        if self._halt is None:
+            self._halt = {}
 
     def reconfigure(self, config):
         """Apply a new configuration at the next tick; the phase and filters are kept."""
@@ -172,6 +188,10 @@ class DualArmMotionGenerator:
             contacts[arm] = self._contact[arm].update(
                 pad_forces[arm], p_tools[index], R_tools[index], frames[arm].p_world_grasp,
                 frames[arm].normal, dt)
+        if reset or go_home:
+            self._halt = None
+        if self._halt is not None:
+            return self._halted_step(p_tools, R_tools, frames, contacts, pad_forces)
         phase_output = self._phase_machine.update(PhaseInputs(
             p_world_tool_left=p_tools[0], p_world_tool_right=p_tools[1],
             p_world_object=p_object, v_world_object=v_object,
@@ -207,6 +227,35 @@ class DualArmMotionGenerator:
             grasp_frames=frames, impact_directions=directions,
             release_position=self._toss_geometry.release_position if toss else None,
             release_velocity=self._release_velocity if toss else None)
+
+    def _halted_step(self, p_tools, R_tools, frames, contacts, pad_forces):
+        """
+        Return the MotionOutput of a halted tick: the task stops where it is (module text).
+
+        A held box (CONTACT, MANIPULATE) gets the carry's commands with a zero object twist: the
+        living arm keeps the pads on the grasp and the wrench QP's squeeze against the arm the
+        robot holds, and the box comes to rest with the held arm instead of being carried away
+        from it (a point attractor back to where the halt found it pulled the pair along and
+        was worse). Otherwise every tool holds its pose at the halt.
+        """
+        halt = self._halt
+        phase = self._phase_machine.phase
+        first = not halt
+        if first:
+            halt.update(tools=p_tools.copy(), rotations=tuple(R.copy() for R in R_tools))
+        zero = np.zeros(3)
+        if phase in (Phase.CONTACT, Phase.MANIPULATE):
+            commands = self._carry(p_tools, R_tools, frames, zero, zero)
+        else:
+            commands = self._standby(p_tools, R_tools, halt['tools'], halt['rotations'])
+        return MotionOutput(
+            phase=PhaseMachineOutput(phase, self._phase_machine.task,
+                                     self._phase_machine.time_in_phase,
+                                     ('halted',) if first else ()),
+            commands=commands, object_velocity=zero, object_angular_velocity=zero,
+            contacts=contacts, pad_forces=pad_forces, grasp_frames=frames,
+            impact_directions={arm: frames[arm].normal for arm in ARMS},
+            release_position=None, release_velocity=None)
 
     def _object_velocity(self, p_object, v_object, phase, dt):
         """
@@ -315,15 +364,17 @@ class DualArmMotionGenerator:
                 R_target, frames[arm].p_world_grasp)
         return commands
 
-    def _standby(self, p_tools, R_tools):
-        """Return independent point-attractor commands toward each arm's standby pose."""
+    def _standby(self, p_tools, R_tools, targets=None, rotations=None):
+        """Return point-attractor commands toward each arm's standby pose (or the given ones)."""
         config = self._config
+        targets = self._standby_positions if targets is None else targets
+        rotations = self._standby_rotations if rotations is None else rotations
         commands = {}
         for index, arm in enumerate(ARMS):
-            target = self._standby_positions[index]
+            target = targets[index]
             velocity = saturated_velocity(-config.standby_gain * (p_tools[index] - target),
                                           config.max_linear_speed)
-            R_target = self._standby_rotations[index]
+            R_target = rotations[index]
             commands[arm] = ArmCommand(
                 velocity,
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),

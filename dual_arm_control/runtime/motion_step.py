@@ -18,6 +18,11 @@ at the next tick, until the box is released; a target no release serves, or one 
 the release, is refused with its reason. A tick whose inputs the generator
 refuses is answered with a stop command (zero velocity at the
 current tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
+
+Every torque command heard (command_heard) feeds a ControllerWatch; at the first tick an arm's
+controller is found lost (silent longer than controller_timeout), the generator halts the task
+where it is (core DualArmMotionGenerator.halt: a held box stays held, squeezed by the living
+arm against the arm the robot holds) and the tick's phase carries the event 'controller_lost'.
 """
 
 from dataclasses import dataclass
@@ -30,6 +35,7 @@ from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement, Obj
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.reachability import plan_grasp
 from dual_arm_control.runtime.configuration import config_for_landing_target
+from dual_arm_control.runtime.controller_watch import ControllerWatch
 from dual_arm_control.runtime.inputs import RefusalCounter
 from dual_arm_control.runtime.signals import arm_command_from, PhaseSample, TwistSample
 from dual_arm_control.runtime.timing import estimate_at, TickSchedule
@@ -60,11 +66,14 @@ class MotionGeneratorStep:
 
     config: MotionGeneratorConfig; models: {arm: ArmModel} (tool and sensor poses from joint
     positions); ds_period [s]; auto_start_ns: sim time of the automatic start (0 = only on
-    request).
+    request); controller_timeout [s]: silence after which an arm's controller is lost (0 = no
+    watch).
     """
 
-    def __init__(self, config, models, ds_period, auto_start_ns=0, on_refusal=None):
+    def __init__(self, config, models, ds_period, auto_start_ns=0, on_refusal=None,
+                 controller_timeout=0.0):
         self._initial_config = config
+        self.controllers = ControllerWatch(round(controller_timeout * 1e9))
         self._models = models
         self._ds_period = ds_period
         self._auto_start_ns = int(auto_start_ns)
@@ -81,6 +90,7 @@ class MotionGeneratorStep:
         self._requests = dict.fromkeys(COMMANDS, False)
         self._last_tick = None
         self.grasp_plan = None
+        self.controllers.restart()
 
     @property
     def config(self):
@@ -137,6 +147,10 @@ class MotionGeneratorStep:
             raise ValueError(f'unknown command {command!r}; expected one of {COMMANDS}')
         self._requests[command] = True
 
+    def command_heard(self, arm, stamp_ns):
+        """Note a torque command of arm's controller stamped stamp_ns [ns] (it is alive)."""
+        self.controllers.heard(arm, stamp_ns)
+
     def is_new_tick(self, stamp_ns):
         """Return True if the cycle stamp_ns is a DS tick not computed yet."""
         return self._schedule.due(stamp_ns) and stamp_ns != self._schedule.last_tick_ns
@@ -171,6 +185,7 @@ class MotionGeneratorStep:
         start = self._requests['start'] or (not self._started and has_object
                                             and stamp_ns >= self._auto_start_ns)
         self._started = self._started or start
+        lost_reason = self._halt_if_lost(stamp_ns)
         refused_start = ''
         if start and has_object:
             refused_start = self._plan_grasp(joints, estimate, stamp_ns)
@@ -190,6 +205,8 @@ class MotionGeneratorStep:
         events = phase.events
         if refused_start:
             events, reason = tuple(events) + ('unreachable',), refused_start
+        if lost_reason:
+            events, reason = tuple(events) + ('controller_lost',), lost_reason
         self._last_tick = MotionTick(
             stamp_ns=stamp_ns,
             commands={arm: arm_command_from(stamp_ns, output.commands[arm]) for arm in ARMS},
@@ -199,6 +216,16 @@ class MotionGeneratorStep:
                               events, reason),
             output=output)
         return self._last_tick
+
+    def _halt_if_lost(self, stamp_ns):
+        """Halt the task when an arm's controller is newly lost; return why, or ''."""
+        lost = self.controllers.newly_lost(stamp_ns)
+        if not lost:
+            return ''
+        self._generator.halt()
+        silences = ', '.join(
+            f'{arm} ({self.controllers.silence_ns(arm, stamp_ns) * 1e-9:.3f} s)' for arm in lost)
+        return f'controller lost, no torque command: {silences}; the task stops where it is'
 
     def _plan_grasp(self, joints, estimate, stamp_ns):
         """Check the grasp before the reach; use its shift, or return why it is refused."""

@@ -24,6 +24,8 @@ DS_PERIOD = 0.005
 """Period of the motion generator and wrench QP ticks [s] (200 Hz, the paper's rate)."""
 COMMAND_TIMEOUT = 0.05
 """Age [s, sim time] beyond which a controller's DS command or contact wrench is stale."""
+CONTROLLER_TIMEOUT = 0.01
+"""Silence [s, sim time] after which the motion generator counts an arm's controller as lost."""
 TF_PERIOD = 0.02
 """Sim time between two /tf updates of one source [s] (50 Hz: enough for viewers, light)."""
 MODES = ('lockstep', 'realtime')
@@ -128,6 +130,10 @@ NODE_TABLES = {
                 're-plans the release state for it, as a point on /dual_arm/landing_target '
                 'does, or is refused with the reason (out of reach, or after the release)',
                 'm', -MAX_WORKSPACE, MAX_WORKSPACE),
+        Setting('controller_timeout', CONTROLLER_TIMEOUT, 'sim time without a torque command '
+                'from the controller of an arm (heard before) after which it counts as lost: the '
+                'task stops where it is, a held box stays squeezed against the arm the robot '
+                'holds; 0 = never', 's', 0.0, 1.0, read_only=True),
         DS_PERIOD_SETTING, LOCKSTEP, DIAGNOSTICS_PERIOD), MotionGeneratorConfig),
     'wrench_qp': NodeTable((
         SCENARIO,
