@@ -146,8 +146,9 @@ class DualArmTwin:
         """Return the (7,) joint torque limits [N m] of an arm (URDF effort limits)."""
         return self._torque_limits[self._arm(arm)].copy()
 
-    def reset(self):
-        """Return to the scenario's initial state; reseed the noise from scenario.seed."""
+    def reset(self, seed=None):
+        """Return to the initial state of the scenario; reseed the noise (seed None: its own)."""
+        self.seed = int(self.scenario.seed if seed is None else seed)
         mujoco.mj_resetData(self.model, self.data)
         for arm in ARMS:
             self.data.qpos[self.index.arms[arm].qpos] = \
@@ -161,7 +162,7 @@ class DualArmTwin:
         self._next_sample = 0
         self._next_perturbation = 0
         self._pending = deque()
-        mocap_seed, ft_seed = np.random.SeedSequence(self.scenario.seed).spawn(2)
+        mocap_seed, ft_seed = np.random.SeedSequence(self.seed).spawn(2)
         self._mocap_rng = np.random.default_rng(mocap_seed)
         self._ft_rng = np.random.default_rng(ft_seed)
         self._collisions.reset()

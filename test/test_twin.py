@@ -194,6 +194,22 @@ def test_same_seed_gives_bit_identical_runs(cell):
                    for a, b in zip(first, run_trajectory(other_seed, 400)))
 
 
+def test_a_reset_with_a_seed_reseeds_the_sensor_noise(cell):
+    """The soak's episodes: /sim/reset with seed s gives the run of a scenario whose seed is s."""
+    scenario = load_scenario('cube_drop', cell)
+    reference = run_trajectory(DualArmTwin(dataclasses.replace(scenario, seed=77), cell), 200)
+    twin = DualArmTwin(scenario, cell)
+    own = run_trajectory(twin, 200)
+    twin.reset(seed=77)
+    assert twin.seed == 77
+    reseeded = run_trajectory(twin, 200)
+    assert all(np.array_equal(a, b) for a, b in zip(reference, reseeded))
+    assert not all(np.array_equal(a, b) for a, b in zip(own, reseeded))
+    twin.reset()
+    assert twin.seed == scenario.seed
+    assert all(np.array_equal(a, b) for a, b in zip(own, run_trajectory(twin, 200)))
+
+
 def test_state_snapshot_restores_the_run(cell, hold_scenario):
     twin = DualArmTwin(load_scenario('cube_drop', cell), cell)
     run_trajectory(twin, 50)

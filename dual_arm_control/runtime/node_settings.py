@@ -84,7 +84,12 @@ NODE_TABLES = {
         Setting('duration', 0.0, 'sim time at which the run ends and the bridge exits 0; 0 = '
                 'the duration of the scenario', 's', 0.0, MAX_DURATION),
         Setting('trajectory_log', '', 'if set: .npz ground-truth trajectory written on exit '
-                '(empty = none)', read_only=True),
+                'and, for the episode it ends, by /sim/reset (empty = none)', read_only=True),
+        Setting('seed', -1, "seed of the twin's sensor noise from the start and at every "
+                "/sim/reset (read then); -1 = the scenario's", '', -1, 2**32 - 1),
+        Setting('at_duration', 'exit', 'at the end of the run (duration): exit 0, or wait (no '
+                'more cycles) until /sim/reset starts the next episode',
+                choices=('exit', 'wait'), read_only=True),
         Setting('ft_period', DS_PERIOD, 'the F/T readings go out on the first FRI cycle of each '
                 'period (TickSchedule: the DS ticks, the only cycles that use them); 0 = every '
                 'FRI cycle', 's', 0.0, 0.1, read_only=True),
