@@ -141,11 +141,6 @@ class DualArmMotionGenerator:
         self._grasp_offset = finite_array('grasp_offset', offset, (3,)).copy()
         self._grasp_roll = float(finite_array('grasp_roll', roll, ()))
 
-    @property
-    def halted(self):
-        """Return True once halt() stopped the task (until a reset or go-home request)."""
-        return self._halt is not None
-
     def halt(self):
         """Stop the task where it is from the next tick on (module text)."""
         if self._halt is None:

@@ -206,9 +206,11 @@ class DsMotionGenerator(Node):
 
     def _report(self):
         refusals = self.step.refusals
-        level = DiagnosticStatus.WARN if refusals.total else DiagnosticStatus.OK
+        level = (DiagnosticStatus.WARN if refusals.total or self.step.controllers.lost_arms
+                 else DiagnosticStatus.OK)
         values = dict(refusals.counts, phase=self.step.phase.value, refused_total=refusals.total,
-                      time_resets=self.step.time_resets, dropped_stamps=self._barrier.dropped)
+                      time_resets=self.step.time_resets, dropped_stamps=self._barrier.dropped,
+                      lost_controllers=','.join(self.step.controllers.lost_arms))
         return level, f'phase {self.step.phase.value}', values
 
 
