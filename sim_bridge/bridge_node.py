@@ -121,7 +121,7 @@ class SimBridge(Node):
         self.get_logger().info(
             f'sim_bridge up: mode {self.mode}, FRI period {self.fri_period * 1e3:g} ms, torque '
             f'interface {self.twin.torque_interface}, scenario '
-            f'{settings["scenario"]}, seed {self.scenario.seed}, stops at sim time '
+            f'{settings["scenario"]}, seed {self.twin.seed}, stops at sim time '
             f'{self.stop_time:g} s, ground truth {"on" if self._publish_ground_truth else "off"}')
 
     def _create_interfaces(self):
@@ -338,7 +338,8 @@ class SimBridge(Node):
         self.twin.reset(seed if seed >= 0 else None)
         self._awaited_tracker_ns = set()
         self.paused = False
-        self._start_episode()
+        if self._started:  # else the start, once the graph is ready, begins the episode
+            self._start_episode()
         response.success = True
         response.message = (f'twin reset to the initial state of the scenario, noise seed '
                             f'{self.twin.seed} (log restarted'
