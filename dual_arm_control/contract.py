@@ -14,7 +14,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
+from std_msgs.msg import Float64, String
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from visualization_msgs.msg import MarkerArray
@@ -114,6 +114,19 @@ MOCAP_OBJECT_POSE = Topic('/mocap/object_pose', PoseStamped, SENSOR_QOS,
 # NO_ESTIMATE_COVARIANCE (-1), the "no estimate" convention of sensor_msgs/Imu.
 OBJECT_STATE = Topic('/object/state', Odometry, CONTROL_QOS)
 NO_ESTIMATE_COVARIANCE = -1.0
+# A conveyor's container, seen by motion capture: the centre of its floor in 'world' (identity
+# orientation), stamped with the sampling time, delivered after the mocap latency.
+MOCAP_CONTAINER_POSE = Topic('/mocap/container_pose', PoseStamped, SENSOR_QOS,
+                             lockstep_depth=SENSOR_SUBSCRIPTION_DEPTH)
+# The tracker's container estimate, answered like /object/state (each sample, each cycle; only
+# with track_container): child 'container', position and velocity in 'world', the filter's
+# position and velocity covariances (rows x, y, z), the same "no estimate" flag.
+CONTAINER_STATE = Topic('/container/state', Odometry, CONTROL_QOS)
+# Commanded speed of the outgoing belt [m/s], toward world -y, as the cell would command a belt
+# driver; the twin adds the scenario's disturbance. Kept for a bridge that starts later.
+OUTGOING_BELT_SPEED = Topic('/belt/outgoing/speed', Float64, QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL))
 # The DS command of one arm for a tick: a one-point MultiDOFJointTrajectory in 'world' for the
 # joint '<arm>_tool': transforms[0] = the DS attractor (translation) and the desired tool
 # orientation (rotation); velocities[0] = the desired tool twist in 'world' at the tool point.
@@ -134,6 +147,8 @@ LANDING_TARGET = Topic('/dual_arm/landing_target', PointStamped, QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL))
 GROUND_TRUTH_OBJECT = Topic('/ground_truth/object', Odometry, MONITOR_QOS)
+# A conveyor's container from the simulator: centre of its floor, velocity, in 'world'.
+GROUND_TRUTH_CONTAINER = Topic('/ground_truth/container', Odometry, MONITOR_QOS)
 # Total force the pad exerts on the box and its moment about the tool point, frame 'world'
 # (zero when the pad does not touch the box).
 GROUND_TRUTH_PAD_WRENCH = Topic('ground_truth/pad_wrench', WrenchStamped, MONITOR_QOS,
@@ -167,7 +182,8 @@ ALL_TOPICS = (
     CLOCK, JOINT_STATES, TORQUE_COMMAND, FT_WRENCH, MOCAP_OBJECT_POSE, OBJECT_STATE, DS_COMMAND,
     CONTACT_WRENCH, OBJECT_DESIRED_TWIST, PHASE, MARKERS, LANDING_TARGET, GROUND_TRUTH_OBJECT,
     GROUND_TRUTH_PAD_WRENCH, GROUND_TRUTH_TOOL, DIAGNOSTICS,
-    RECORDER_STATUS, ROBOT_DESCRIPTION, TF, TF_STATIC,
+    RECORDER_STATUS, ROBOT_DESCRIPTION, TF, TF_STATIC, MOCAP_CONTAINER_POSE, CONTAINER_STATE,
+    OUTGOING_BELT_SPEED, GROUND_TRUTH_CONTAINER,
 )
 
 # Services of the bridge (std_srvs/Trigger) and their names.

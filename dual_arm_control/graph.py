@@ -9,6 +9,7 @@ node parameters, the same way for both.
 from dataclasses import dataclass, field
 
 from dual_arm_control.contract import ARMS
+from dual_arm_control.scenario import load_scenario
 
 
 @dataclass(frozen=True)
@@ -115,6 +116,8 @@ def run_parameters(graph, scenario=None, mode='lockstep', trajectory_log=None, r
             parameters['wrench_qp'] = {'scenario': str(scenario)}
         for name in ('object_tracker', 'ds_motion_generator', 'wrench_qp'):
             parameters.setdefault(name, {})['lockstep'] = mode == 'lockstep'
+        if scenario is not None and load_scenario(scenario).conveyor is not None:
+            parameters['object_tracker']['track_container'] = True
         parameters['passive_controller'] = {'lockstep': mode == 'lockstep'}
         if mode != 'lockstep':
             parameters['sim_bridge']['lockstep_wait_for_tracker'] = False

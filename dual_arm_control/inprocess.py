@@ -65,12 +65,14 @@ class EpisodeLog:
     """
     What an in-process run produced.
 
-    trajectory: ground truth; phases: the phase at every DS tick; landing_target_refusals: per
-    landing target change, the reason it was refused ('' if applied).
+    trajectory: ground truth; phases: the phase at every DS tick; events: (time, events,
+    reason) of every tick with events; landing_target_refusals: per landing target change, the
+    reason it was refused ('' if applied).
     """
 
     trajectory: dict
     phases: list = field(default_factory=list)
+    events: list = field(default_factory=list)
     landing_target_refusals: list = field(default_factory=list)
 
 
@@ -143,12 +145,19 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
         with timer.stage('tracker'):
             for sample in state.mocap:
                 roles.tracker.sample(sample.stamp_ns, sample.position, sample.quat_xyzw)
+            for sample in state.container_mocap:
+                roles.tracker.container_sample(sample.stamp_ns, sample.position)
             estimate = roles.tracker.at(state.stamp_ns)
+            container = (roles.tracker.container_at(state.stamp_ns) if twin.container is not None
+                         else None)
         ticking = roles.motion.is_new_tick(state.stamp_ns)
         with timer.stage('ds') if ticking else nullcontext():
-            tick = roles.motion.cycle(state.stamp_ns, state.joints, state.ft_wrenches, estimate)
+            tick = roles.motion.cycle(state.stamp_ns, state.joints, state.ft_wrenches, estimate,
+                                      container)
         if tick is not None:
             log.phases.append((state.stamp_ns * 1e-9, tick.phase.phase.value))
+            if tick.phase.events:
+                log.events.append((state.stamp_ns * 1e-9, tick.phase.events, tick.phase.reason))
             with timer.stage('qp'):
                 wrenches = roles.wrench.tick(
                     state.stamp_ns, tick.phase.phase, tick.desired_twist,

@@ -21,6 +21,9 @@ RANDOMIZED_RANGES = {
     'mocap_noise': ('m', 0.0, 0.1, True),
     'mocap_latency': ('s', 0.0, 1.0, True),
     'release_yaw': ('deg', -180.0, 180.0, True),
+    'belt_speed': ('m/s', -2.0, 2.0, True),
+    'container_start': ('m', -3.0, 3.0, True),
+    'container_start_time': ('s', 0.0, 600.0, True),
 }
 
 
@@ -36,7 +39,9 @@ class Randomization:
     [rad] of the offset of the initial yaw; mass (low, high) [kg], size_scale (low, high) [-]
     (factor on all three edges), friction (low, high) [-], mocap_noise (low, high) [m] (mocap
     position noise standard deviation), mocap_latency (low, high) [s] and release_yaw (low,
-    high) [deg] (yaw of the object's orientation at release, toss tasks): ranges drawn
+    high) [deg] (yaw of the object's orientation at release, toss tasks), belt_speed (low,
+    high) [m/s], container_start (low, high) [m] and container_start_time (low, high) [s]
+    (the scenario's conveyor: its speed, the container's start y and start time): ranges drawn
     uniformly, None keeps the scenario's (or the drawn type's) value. The controllers are
     given the drawn object (the scenario is their prior as well as the twin's truth).
     """
@@ -50,6 +55,9 @@ class Randomization:
     mocap_noise: object = None
     mocap_latency: object = None
     release_yaw: object = None
+    belt_speed: object = None
+    container_start: object = None
+    container_start_time: object = None
 
     def __post_init__(self):
         if self.object_types is not None:

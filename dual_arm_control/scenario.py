@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 from dual_arm_control.catalogue import load_catalogue
+from dual_arm_control.conveyor import conveyor_document, ConveyorConfig, read_conveyor
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.impact import ImpactConfig
@@ -124,8 +125,10 @@ class Scenario:
     tasks; None: the object keeps the orientation it was grasped in); place:
     object centre at placing (3,) [m] or None; speeds (Speeds); perturbations (tuple of
     Perturbation, sorted by time); duration [s]; initial_configuration {arm: (7,) [rad]};
-    sensors (SensorConfig); randomization (Randomization or None: a template for dual_arm_eval,
-    see sample_trial; a single run ignores it); path (source file or None).
+    sensors (SensorConfig); conveyor (ConveyorConfig or None: the outgoing belt and its
+    container; toss tasks then aim into the moving container); randomization (Randomization
+    or None: a template for dual_arm_eval, see sample_trial; a single run ignores it); path
+    (source file or None).
     """
 
     name: str
@@ -141,6 +144,7 @@ class Scenario:
     place: object = None
     perturbations: tuple = ()
     sensors: SensorConfig = field(default_factory=SensorConfig)
+    conveyor: object = None
     randomization: object = None
     path: object = None
 
@@ -167,6 +171,8 @@ class Scenario:
             object.__setattr__(self, 'release_orientation', rpy)
         if set(self.initial_configuration) != set(ARMS):
             raise ConfigError(f'initial_configuration needs the arms {ARMS}')
+        if self.conveyor is not None and not isinstance(self.conveyor, ConveyorConfig):
+            raise ConfigError(f'conveyor must be a ConveyorConfig or None, got {self.conveyor!r}')
         if self.randomization is not None and not isinstance(self.randomization,
                                                              Randomization):
             raise ConfigError(f'randomization must be a Randomization or None, got '
@@ -256,7 +262,7 @@ def load_scenario(path, cell=None, catalogue_path=None):
     data = load_yaml(path)
     reader.check_keys(data, ('name', 'seed', 'task', 'object', 'release', 'landing_target',
                              'release_orientation', 'place', 'speeds', 'perturbations', 'duration',
-                             'initial_configuration', 'sensors', 'randomization'), '')
+                             'initial_configuration', 'sensors', 'conveyor', 'randomization'), '')
     name = require(data, 'name', path, str)
     seed = require(data, 'seed', path, int)
     if isinstance(seed, bool) or seed < 0:
@@ -319,7 +325,7 @@ def load_scenario(path, cell=None, catalogue_path=None):
         release_orientation=(reader.vector(data, 'release_orientation', (3,), '', 'deg')
                              if 'release_orientation' in data else None),
         perturbations=tuple(sorted(perturbations, key=lambda item: item.time)),
-        sensors=read_sensor_config(reader, data),
+        sensors=read_sensor_config(reader, data), conveyor=read_conveyor(reader, data),
         randomization=read_randomization(reader, data, catalogue_path),
         path=path)
 
@@ -365,6 +371,8 @@ def scenario_document(scenario):
         'mocap': {item.name: float(getattr(mocap, item.name)) for item in fields(MocapConfig)},
         'ft': {'force_noise': float(ft.force_noise), 'torque_noise': float(ft.torque_noise),
                'force_bias': numbers(ft.force_bias), 'torque_bias': numbers(ft.torque_bias)}}
+    if scenario.conveyor is not None:
+        document['conveyor'] = conveyor_document(scenario.conveyor)
     if scenario.randomization is not None:
         document['randomization'] = randomization_document(scenario.randomization)
     return document

@@ -28,6 +28,11 @@ OBJECT_FIELDS = {
     'object_velocity': ((3,), 'object linear velocity in world [m/s]'),
     'object_angular_velocity': ((3,), 'object angular velocity in world [rad/s]'),
 }
+# The container of a scenario with a conveyor (optional in a log: absent without one).
+CONTAINER_FIELDS = {
+    'container_position': ((3,), 'centre of the container floor in world [m]'),
+    'container_velocity': ((3,), 'container linear velocity in world [m/s]'),
+}
 COUNTER_FIELDS = ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count')
 # The arm collisions of the episode (optional in a log: older logs lack them).
 COLLISION_FIELDS = {
@@ -44,7 +49,7 @@ class TrajectoryRecorder:
         for arm in ARMS:
             for name in ARM_FIELDS:
                 self._rows[f'{arm}_{name}'] = []
-        for name in OBJECT_FIELDS:
+        for name in (*OBJECT_FIELDS, *CONTAINER_FIELDS):
             self._rows[name] = []
         self.counters = dict.fromkeys(COUNTER_FIELDS, 0)
         self._twin = None
@@ -73,10 +78,15 @@ class TrajectoryRecorder:
                             ('object_velocity', object_velocity),
                             ('object_angular_velocity', object_angular_velocity)):
             self._rows[name].append(np.array(value, dtype=float, copy=True))
+        container = getattr(twin, 'container', None)
+        if container is not None:
+            for name, value in zip(CONTAINER_FIELDS, container.pose(twin.data)):
+                self._rows[name].append(value)
 
     def arrays(self):
         """Return the log as a dict of NumPy arrays, first axis = sample."""
-        data = {name: np.array(rows) for name, rows in self._rows.items()}
+        data = {name: np.array(rows) for name, rows in self._rows.items()
+                if rows or name not in CONTAINER_FIELDS}
         for arm in ARMS:
             data[f'{arm}_pad_contact'] = data[f'{arm}_pad_contact'].astype(bool)
         for name, value in self.counters.items():

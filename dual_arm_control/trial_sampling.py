@@ -20,6 +20,8 @@ TRIAL_DRAWS = ('object_x', 'object_y', 'object_yaw', 'mass', 'size_scale', 'fric
 # Draws added later come from a second generator, so the first one's draws (and the trial's
 # noise seed) stay those of the files written before them.
 LATER_DRAWS = ('object_type', 'mocap_latency', 'release_yaw')
+# The conveyor's draws, from a third generator.
+CONVEYOR_DRAWS = ('belt_speed', 'container_start', 'container_start_time')
 
 
 def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
@@ -30,8 +32,10 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
     SeedSequence([seed, trial_index]) draws one uniform number per quantity of TRIAL_DRAWS in a
     fixed order (adding a range to a file leaves the other quantities' draws unchanged), then
     the trial's own seed, so every trial has different but reproducible sensor noise; a
-    second, SeedSequence([seed, trial_index, 1]), draws LATER_DRAWS. A drawn object type
-    replaces the box's size, mass and friction by its catalogue values before the ranges apply.
+    second, SeedSequence([seed, trial_index, 1]), draws LATER_DRAWS, and a third,
+    SeedSequence([seed, trial_index, 2]), the CONVEYOR_DRAWS of a scenario's conveyor. A
+    drawn object type replaces the box's size, mass and friction by its catalogue values
+    before the ranges apply.
     The box rests on the surface below its drawn position as the scenario's did; resting
     targets (landing_target, place) follow its height; a drawn release_yaw sets the yaw of the
     release orientation. The trial has no randomization and no
@@ -45,6 +49,9 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
     trial_seed = int(generator.integers(0, 2 ** 31))
     later = np.random.default_rng(np.random.SeedSequence([scenario.seed, trial_index, 1]))
     draw.update(zip(LATER_DRAWS, later.random(len(LATER_DRAWS))))
+    conveyor_draws = np.random.default_rng(np.random.SeedSequence([scenario.seed, trial_index,
+                                                                   2]))
+    draw.update(zip(CONVEYOR_DRAWS, conveyor_draws.random(len(CONVEYOR_DRAWS))))
     spec = scenario.randomization or Randomization()
 
     def from_range(name, default):
@@ -89,7 +96,14 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
         moved.setflags(write=False)
         return moved
 
-    return replace(scenario, seed=trial_seed, object=trial_object,
+    conveyor = scenario.conveyor
+    if conveyor is not None:
+        conveyor = replace(
+            conveyor, speed=from_range('belt_speed', conveyor.speed),
+            container_start=from_range('container_start', conveyor.container_start),
+            container_start_time=from_range('container_start_time',
+                                            conveyor.container_start_time))
+    return replace(scenario, seed=trial_seed, object=trial_object, conveyor=conveyor,
                    landing_target=raised(scenario.landing_target), place=raised(scenario.place),
                    release_orientation=release_orientation,
                    sensors=replace(scenario.sensors, mocap=mocap), randomization=None,

@@ -10,7 +10,8 @@ hold policy). Two modes:
   when every arm answered with a command stamped t_k (a refused command counts as the answer:
   that arm holds). Until then the state is republished every `lockstep_republish_period` wall
   seconds (discovery, lost messages). With lockstep_wait_for_tracker the cycle's mocap samples go
-  out first and the rest only after the tracker answered each. Deterministic. With
+  out first (a conveyor's container's too) and the rest only after the tracker answered each
+  (on /object/state, /container/state). Deterministic. With
   lockstep_answer_timeout a cycle goes on without an arm that has not answered within that wall
   time (FriCycle's policy for a missed deadline), so a dead controller cannot stall the twin.
 - realtime: a wall-clock timer paces the cycles like a real robot; at each deadline the twin
@@ -18,7 +19,8 @@ hold policy). Two modes:
 
 In both modes the first state (and in realtime the clock) waits for the awaited graph
 (`wait_for_nodes`, `wait_for_subscribers`, `wait_for_recorder`; lockstep_start.GraphReadiness),
-so every node sees the run from its first cycle.
+so every node sees the run from its first cycle. A scenario with a conveyor takes its belt
+speed commands on /belt/outgoing/speed.
 
 The trajectory log (`trajectory_log`) has one row per cycle: row 0 the initial state (zero
 torque), row k + 1 the state after cycle k with the torque applied during it; the counters are
@@ -44,11 +46,10 @@ from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import load_scenario
 from dual_arm_control.trajectory_log import TrajectoryRecorder
 import numpy as np
-import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sim_bridge.bridge_diagnostics import counter_values, diagnostics_message
-from sim_bridge.episode_log import save_episode_log
+from sim_bridge.episode_log import save_episode_log, write_log_on_exit
 from sim_bridge.ground_truth import GroundTruthStreams
 from sim_bridge.lockstep_start import GraphReadiness
 from sim_bridge.robot_streams import RobotStreams
@@ -96,7 +97,7 @@ class SimBridge(Node):
         self.paused = False
         self.late_cycles = 0
         self._cycle = None
-        self._awaited_tracker_ns = set()
+        self._awaited_answers = set()
         self._next_diagnostics_ns = 0
         self._next_ground_truth_ns = 0
         self._last_publish_wall = -math.inf
@@ -125,9 +126,9 @@ class SimBridge(Node):
             f'{self.stop_time:g} s, ground truth {"on" if self._publish_ground_truth else "off"}')
 
     def _create_interfaces(self):
-        self._robot = RobotStreams(self)
+        self._robot = RobotStreams(self, container=self.twin.container is not None)
         self._diagnostics_pub = create_topic_publisher(self, contract.DIAGNOSTICS)
-        self._truth = GroundTruthStreams(self)
+        self._truth = GroundTruthStreams(self, container=self.twin.container is not None)
         for arm in contract.ARMS:
             self.create_subscription(contract.TORQUE_COMMAND.msg_type,
                                      contract.TORQUE_COMMAND.resolved(arm),
@@ -137,8 +138,14 @@ class SimBridge(Node):
         self.create_service(Trigger, contract.SIM_RESET_SERVICE, self._on_reset)
         self.create_service(Trigger, contract.SIM_MOVE_OBJECT_SERVICE, self._on_move_object)
         if self._wait_for_tracker:
-            self.create_subscription(contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
-                                     self._on_tracker_answer, contract.OBJECT_STATE.qos)
+            for name, topic in (('object', contract.OBJECT_STATE),
+                                ('container', contract.CONTAINER_STATE)):
+                self.create_subscription(topic.msg_type, topic.name, lambda msg, name=name:
+                                         self._on_tracker_answer(name, msg), topic.qos)
+        if self.twin.container is not None:
+            self.create_subscription(contract.OUTGOING_BELT_SPEED.msg_type,
+                                     contract.OUTGOING_BELT_SPEED.name, self._on_belt_speed,
+                                     contract.OUTGOING_BELT_SPEED.qos)
 
     def _streams(self):
         """Return every stream the bridge publishes each cycle."""
@@ -188,10 +195,16 @@ class SimBridge(Node):
                 f'{self.fri.counters[arm].watchdog_holds})'))
         self._advance()
 
-    def _on_tracker_answer(self, msg):
-        if self._awaited_tracker_ns:
-            self._awaited_tracker_ns.discard(stamp_ns(msg.header.stamp))
-            if not self._awaited_tracker_ns:
+    def _on_belt_speed(self, msg):
+        try:
+            self.twin.set_belt_speed(msg.data)
+        except DualArmControlError as error:
+            self._warn_throttled(('belt', 'speed'), f'belt speed {msg.data!r} refused: {error}')
+
+    def _on_tracker_answer(self, name, msg):
+        if self._awaited_answers:
+            self._awaited_answers.discard((name, stamp_ns(msg.header.stamp)))
+            if not self._awaited_answers:
                 self._publish_cycle_state()
 
     def _on_startup_timer(self):
@@ -220,7 +233,7 @@ class SimBridge(Node):
         if self.paused:
             return
         now = time.monotonic()
-        if (self._answer_timeout > 0.0 and not self._awaited_tracker_ns
+        if (self._answer_timeout > 0.0 and not self._awaited_answers
                 and now - self._state_published_wall >= self._answer_timeout):
             self._warn_throttled(('lockstep', 'deadline'), (
                 f'lockstep: no torque command from {self.fri.missing()} within '
@@ -229,11 +242,11 @@ class SimBridge(Node):
             return
         if now - self._last_publish_wall < self._republish_period:
             return
-        if self._awaited_tracker_ns:
+        if self._awaited_answers:
             self._publish_mocap()
             self._warn_throttled(('lockstep', 'tracker'), (
                 'lockstep: waiting for the object tracker to answer the mocap samples stamped '
-                f'{sorted(s * 1e-9 for s in self._awaited_tracker_ns)} s'))
+                f'{sorted((name, s * 1e-9) for name, s in self._awaited_answers)} s'))
             return
         # Both arms again: the DS and the wrench QP re-answer a tick only with a complete set,
         # and a controller that missed their first answer needs it (extra commands are ignored).
@@ -285,8 +298,10 @@ class SimBridge(Node):
             schedule.take(self._cycle.stamp_ns)
         self._state_published_wall = time.monotonic()
         self._publish_mocap()
-        if self._wait_for_tracker and self._cycle.mocap:
-            self._awaited_tracker_ns = {sample.stamp_ns for sample in self._cycle.mocap}
+        self._awaited_answers = set() if not self._wait_for_tracker else {
+            *(('object', sample.stamp_ns) for sample in self._cycle.mocap),
+            *(('container', sample.stamp_ns) for sample in self._cycle.container_mocap)}
+        if self._awaited_answers:
             return
         self._publish_cycle_state()
 
@@ -336,7 +351,7 @@ class SimBridge(Node):
         written = self.write_trajectory_log()
         seed = self.settings['seed']
         self.twin.reset(seed if seed >= 0 else None)
-        self._awaited_tracker_ns = set()
+        self._awaited_answers = set()
         self.paused = False
         if self._started:  # else the start, once the graph is ready, begins the episode
             self._start_episode()
@@ -371,22 +386,9 @@ class SimBridge(Node):
         return self._trajectory_log
 
 
-def _write_log(node):
-    """Write the bridge's trajectory log on the way out; return the exit code."""
-    exit_logger = rclpy.logging.get_logger(f'{node.get_name()}.exit')
-    try:
-        path = node.write_trajectory_log()
-    except OSError as error:
-        exit_logger.error(f'cannot write the trajectory log: {error}')
-        return 1
-    if path:
-        exit_logger.info(f'trajectory log written to {path}')
-    return 0
-
-
 def main(args=None):
     """Run the bridge until the run's end (exit 0), Ctrl-C or SIGTERM."""
-    return run_node(SimBridge, 'sim_bridge', args, on_exit=_write_log)
+    return run_node(SimBridge, 'sim_bridge', args, on_exit=write_log_on_exit)
 
 
 if __name__ == '__main__':

@@ -2,6 +2,8 @@
 
 import time
 
+import rclpy
+
 
 def save_episode_log(recorder, fri, late_cycles, first_cycle_wall, seed, path):
     """
@@ -17,3 +19,16 @@ def save_episode_log(recorder, fri, late_cycles, first_cycle_wall, seed, path):
         'wall_time': time.monotonic() - first_cycle_wall if first_cycle_wall else 0.0,
         'fri_period': fri.backend.fri_period, 'seed': seed})
     recorder.save(path)
+
+
+def write_log_on_exit(node):
+    """Write the bridge's trajectory log on the way out; return the exit code."""
+    exit_logger = rclpy.logging.get_logger(f'{node.get_name()}.exit')
+    try:
+        path = node.write_trajectory_log()
+    except OSError as error:
+        exit_logger.error(f'cannot write the trajectory log: {error}')
+        return 1
+    if path:
+        exit_logger.info(f'trajectory log written to {path}')
+    return 0

@@ -1,5 +1,5 @@
 """
-The simulator's ground truth on topics: object, tools and pad wrenches.
+The simulator's ground truth on topics: object, tools, pad wrenches and a conveyor's container.
 
 For evaluation and recording only; no node of the control graph subscribes. Published at most
 once per `period` of sim time.
@@ -8,6 +8,9 @@ once per `period` of sim time.
 from dual_arm_control import contract
 from dual_arm_control.nodes.messages import fill_odometry, set_odometry, set_vector3, time_msg
 from dual_arm_control.nodes.process import create_topic_publisher
+import numpy as np
+
+_IDENTITY_QUAT = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 class Stream:
@@ -29,9 +32,12 @@ class Stream:
 class GroundTruthStreams:
     """Publishers of the twin's ground truth; publish(twin, stamp_ns) sends one set."""
 
-    def __init__(self, node):
+    def __init__(self, node, container=False):
         self.object = Stream(node, contract.GROUND_TRUTH_OBJECT, frame_id=contract.WORLD_FRAME,
                              child_frame_id='object')
+        self.container = None if not container else Stream(
+            node, contract.GROUND_TRUTH_CONTAINER, frame_id=contract.WORLD_FRAME,
+            child_frame_id='container')
         self.tools, self.pad_wrenches = {}, {}
         for arm in contract.ARMS:
             self.tools[arm] = Stream(node, contract.GROUND_TRUTH_TOOL, arm,
@@ -41,7 +47,8 @@ class GroundTruthStreams:
 
     def streams(self):
         """Return every stream."""
-        return [self.object, *self.tools.values(), *self.pad_wrenches.values()]
+        return [self.object, *self.tools.values(), *self.pad_wrenches.values(),
+                *([self.container] if self.container else [])]
 
     def publish(self, twin, stamp_ns):
         """Publish the twin's current ground truth stamped stamp_ns."""
@@ -49,6 +56,11 @@ class GroundTruthStreams:
         self.object.msg.header.stamp = stamp
         set_odometry(self.object.msg, *twin.object_pose(), *twin.object_twist())
         self.object.publish()
+        if self.container is not None:
+            position, velocity = twin.container.pose(twin.data)
+            self.container.msg.header.stamp = stamp
+            set_odometry(self.container.msg, position, _IDENTITY_QUAT, velocity, np.zeros(3))
+            self.container.publish()
         for arm in contract.ARMS:
             p_world_tool, R_world_tool = twin.tool_pose(arm)
             tool = self.tools[arm]

@@ -246,11 +246,11 @@ def add_arm(spec, description, prefix):
 def _add_block(spec, name, block):
     geom = spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX,
                                    pos=block.center, size=0.5 * block.size)
-    _scene_contact(geom)
+    scene_contact(geom)
     geom.rgba = [0.6, 0.5, 0.4, 1.0]
 
 
-def _scene_contact(geom):
+def scene_contact(geom):
     geom.contype, geom.conaffinity = SCENE_CONTYPE, SCENE_CONAFFINITY
     geom.friction = [SCENE_FRICTION, 0.005, 0.0001]
     geom.solref = CONTACT_SOLREF
@@ -295,7 +295,7 @@ def build_spec(cell, object_config):
     spec.option.impratio = 10.0
     floor = spec.worldbody.add_geom(name='floor', type=mujoco.mjtGeom.mjGEOM_PLANE,
                                     pos=[0.0, 0.0, cell.floor_height], size=[3.0, 3.0, 0.1])
-    _scene_contact(floor)
+    scene_contact(floor)
     floor.rgba = [0.3, 0.3, 0.35, 1.0]
     _add_block(spec, 'pallet', cell.pallet)
     _add_block(spec, 'front_table', cell.front_table)

@@ -3,14 +3,13 @@ ROS-free MuJoCo twin of the cell: two torque-controlled arms behind an FRI-like 
 
 One call to step() is one FRI cycle: the torques are held for fri_period (fri_period / dt
 physics steps at dt = 1 ms). Sensors: joint state, FT wrench per grabber (noise and bias),
-motion capture of the object (rate, latency, noise, dropouts). All randomness comes from
-generators seeded by the scenario seed and drawn in a fixed order, so two runs with the same
-scenario and torques are bit-identical.
+motion capture of the object (rate, latency, noise, dropouts) and, with a conveyor, of the
+container (sim_bridge.belt). All randomness comes from generators seeded by the scenario seed
+and drawn in a fixed order, so two runs with the same scenario and torques are bit-identical.
 """
 
 from collections import deque
 import copy
-from dataclasses import dataclass
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError, InputError
@@ -21,61 +20,15 @@ from dual_arm_control.runtime.node_settings import FRI_PERIOD, FRI_PERIODS, TORQ
 import mujoco
 import numpy as np
 from sim_bridge.arm_collisions import ArmCollisionMonitor
+from sim_bridge.belt import build_cell_model, ContainerDrive
+from sim_bridge.pad_forces import pad_wrench
 from sim_bridge.safety_hold import hold_command
-from sim_bridge.scene import build_model, PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
+from sim_bridge.scene import PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
+from sim_bridge.twin_samples import JointSample, MocapSample, StepReport, TwinState
 
 # A sample or perturbation due at time t is taken at the first physics tick with
 # tick * dt >= t - TIME_EPSILON [s] (floating-point tolerance on the sim clock).
 TIME_EPSILON = 1e-9
-
-
-@dataclass(frozen=True)
-class StepReport:
-    """
-    What one FRI cycle did, per arm.
-
-    clamped: the joint torque exceeded a limit and was clamped; applied: the joint torques
-    [N m] (7,) the drives produced (the command, plus gravity compensation with the
-    gravity_compensated interface), after clamping; arm_collisions: the ArmCollisions that
-    began during the cycle (sim_bridge.arm_collisions).
-    """
-
-    clamped: dict
-    applied: dict
-    arm_collisions: tuple = ()
-
-
-@dataclass(frozen=True)
-class JointSample:
-    """Joint state of one arm: position [rad], velocity [rad/s], measured torque [N m], (7,)."""
-
-    position: np.ndarray
-    velocity: np.ndarray
-    measured_torque: np.ndarray
-
-
-@dataclass(frozen=True)
-class MocapSample:
-    """A motion-capture sample of the object: stamp (sampling sim time) [s], pose in world."""
-
-    stamp: float
-    p_world: np.ndarray
-    quat_xyzw: np.ndarray
-
-
-@dataclass(frozen=True)
-class TwinState:
-    """A snapshot of the twin (physics and sensor models) for set_state()."""
-
-    physics: np.ndarray
-    tick: int
-    ctrl: np.ndarray
-    next_sample: int
-    next_perturbation: int
-    pending: tuple
-    ft_cache: dict
-    rng_states: tuple
-    colliding_pairs: frozenset
 
 
 class DualArmTwin:
@@ -104,7 +57,7 @@ class DualArmTwin:
             raise ConfigError(f'fri_period = {fri_period} s is not one of {FRI_PERIODS} s')
         self.scenario = scenario
         self.cell = cell or load_cell()
-        self.model, self.index = build_model(self.cell, scenario.object)
+        self.model, self.index = build_cell_model(self.cell, scenario)
         self.data = mujoco.MjData(self.model)
         self._scratch = mujoco.MjData(self.model)
         self._fri_period = float(fri_period)
@@ -115,6 +68,8 @@ class DualArmTwin:
         self._sample_period_ticks = 1.0 / (mocap.rate_hz * PHYSICS_TIMESTEP)
         self._latency = mocap.latency
         self._collisions = ArmCollisionMonitor(self.model, self.index)
+        self.container = None if scenario.conveyor is None else ContainerDrive(
+            self.model, scenario.conveyor, scenario.seed, mocap)
         self.reset()
 
     @property
@@ -137,6 +92,12 @@ class DualArmTwin:
         """Physics step [s]."""
         return PHYSICS_TIMESTEP
 
+    def set_belt_speed(self, speed):
+        """Command the outgoing belt's speed [m/s] (toward world -y); InputError without one."""
+        if self.container is None:
+            raise InputError('this scenario has no conveyor')
+        self.container.set_speed(float(finite_array('belt speed', [speed], (1,))[0]))
+
     @property
     def arm_collisions(self):
         """Every ArmCollision since reset(), in order."""
@@ -157,6 +118,9 @@ class DualArmTwin:
         yaw = float(self.scenario.object.yaw)
         self.data.qpos[adr:adr + 3] = self.scenario.object.position
         self.data.qpos[adr + 3:adr + 7] = [np.cos(0.5 * yaw), 0.0, 0.0, np.sin(0.5 * yaw)]
+        self._container_pending = deque()
+        if self.container is not None:
+            self.container.reset(self.data)
         mujoco.mj_forward(self.model, self.data)
         self._tick = 0
         self._next_sample = 0
@@ -192,6 +156,8 @@ class DualArmTwin:
             self.data.ctrl[self.index.arms[arm].actuators] = applied[arm]
         for _ in range(self._substeps):
             self._apply_due_perturbations()
+            if self.container is not None:
+                self.container.drive(self.data, self.time, PHYSICS_TIMESTEP)
             mujoco.mj_step(self.model, self.data)
             self._tick += 1
             self._sample_mocap()
@@ -293,10 +259,16 @@ class DualArmTwin:
 
     def mocap_samples(self):
         """Return the MocapSamples whose delivery time (stamp + latency) has come, oldest first."""
+        return self._delivered(self._pending)
+
+    def container_mocap_samples(self):
+        """Return the container's ContainerSamples delivered by now, oldest first."""
+        return self._delivered(self._container_pending)
+
+    def _delivered(self, queue):
         delivered = []
-        while self._pending and \
-                self._pending[0].stamp + self._latency <= self.time + TIME_EPSILON:
-            delivered.append(self._pending.popleft())
+        while queue and queue[0].stamp + self._latency <= self.time + TIME_EPSILON:
+            delivered.append(queue.popleft())
         return delivered
 
     def state(self):
@@ -310,7 +282,9 @@ class DualArmTwin:
             pending=tuple(self._pending), ft_cache=copy.deepcopy(self._ft_cache),
             rng_states=(copy.deepcopy(self._mocap_rng.bit_generator.state),
                         copy.deepcopy(self._ft_rng.bit_generator.state)),
-            colliding_pairs=self._collisions.colliding_pairs)
+            colliding_pairs=self._collisions.colliding_pairs,
+            container=None if self.container is None else self.container.state(),
+            container_pending=tuple(self._container_pending))
 
     def set_state(self, state):
         """Restore a snapshot taken by state()."""
@@ -326,6 +300,9 @@ class DualArmTwin:
         self._mocap_rng.bit_generator.state = copy.deepcopy(state.rng_states[0])
         self._ft_rng.bit_generator.state = copy.deepcopy(state.rng_states[1])
         self._collisions.colliding_pairs = state.colliding_pairs
+        self._container_pending = deque(state.container_pending)
+        if self.container is not None:
+            self.container.set_state(state.container)
 
     def _arm(self, arm):
         if arm not in ARMS:
@@ -344,6 +321,8 @@ class DualArmTwin:
         mocap = self.scenario.sensors.mocap
         while self._next_sample * self._sample_period_ticks <= self._tick + TIME_EPSILON:
             self._next_sample += 1
+            if self.container is not None:
+                self._container_pending.append(self.container.sample(self.data, self.time))
             p_world, quat_xyzw = self.object_pose()
             position_noise = self._mocap_rng.normal(0.0, mocap.position_noise, 3)
             rotation_noise = self._mocap_rng.normal(0.0, mocap.orientation_noise, 3)
@@ -370,26 +349,8 @@ class DualArmTwin:
 
     def _pad_wrench(self, arm):
         index = self.index.arms[self._arm(arm)]
-        pad, box = index.pad_geom, self.index.object_geom
-        p_world_tool, _ = site_pose(self.data, index.tool_site)
-        force_world = np.zeros(3)
-        torque_world = np.zeros(3)
-        in_contact = False
-        contact_force = np.zeros(6)
-        for contact_id in range(self.data.ncon):
-            contact = self.data.contact[contact_id]
-            if {int(contact.geom1), int(contact.geom2)} != {pad, box}:
-                continue
-            mujoco.mj_contactForce(self.model, self.data, contact_id, contact_force)
-            # Contact frame rows: normal (from geom1 to geom2), two tangents; the force is the
-            # one geom1 exerts on geom2.
-            force = contact.frame.reshape(3, 3).T @ contact_force[:3]
-            if int(contact.geom1) != pad:
-                force = -force
-            force_world += force
-            torque_world += np.cross(contact.pos - p_world_tool, force)
-            in_contact = True
-        return force_world, torque_world, in_contact
+        return pad_wrench(self.model, self.data, index.pad_geom, self.index.object_geom,
+                          index.tool_site)
 
 
 def _same_hemisphere(quat_xyzw, reference_xyzw):

@@ -10,6 +10,7 @@ import math
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.nodes.messages import stamp_ns, time_msg
+from dual_arm_control.resources import config_path
 from dual_arm_control.runtime.fri import command_refusal
 from dual_arm_control.runtime.node_settings import node_table
 from graph_helpers import GraphProbe
@@ -18,6 +19,7 @@ import pytest
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from sim_bridge.bridge_node import SimBridge
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 NAMES = contract.joint_names('left')
@@ -187,3 +189,43 @@ def test_reset_service_returns_to_the_initial_state(graph):
     assert bridge.twin.time == 0.0
     for arm in contract.ARMS:
         assert np.array_equal(bridge.twin.joint_state(arm).position, initial[arm])
+
+
+def test_belt_speed_topic_commands_the_conveyor(ros_domain):
+    probe = GraphProbe(ros_domain)
+    bridge = SimBridge(context=probe.context, parameter_overrides=[
+        Parameter('scenario', value=str(config_path('scenarios', 'conveyor_toss.yaml'))),
+        Parameter('lockstep_wait_for_tracker', value=False)])
+    probe.executor.add_node(bridge)
+    truth = []
+    probe.node.create_subscription(contract.GROUND_TRUTH_CONTAINER.msg_type,
+                                   contract.GROUND_TRUTH_CONTAINER.name, truth.append,
+                                   contract.GROUND_TRUTH_CONTAINER.qos)
+    controllers = Controllers(probe)
+    try:
+        while not truth and bridge.fri.cycles < 20:
+            cycles = bridge.fri.cycles
+            assert probe.spin_until(lambda: all(
+                states and stamp_ns(states[-1].header.stamp) == bridge.fri.awaited_ns
+                for states in controllers.states.values()), SPIN_TIMEOUT)
+            for arm in contract.ARMS:
+                controllers.send(arm, controllers.states[arm][-1].header.stamp,
+                                 bridge.twin.hold_torques(arm))
+            assert probe.spin_until(lambda: bridge.fri.cycles > cycles, SPIN_TIMEOUT)
+        assert probe.spin_until(lambda: truth, SPIN_TIMEOUT)
+        assert truth[-1].pose.pose.position.y == pytest.approx(
+            bridge.scenario.conveyor.container_start)
+        publisher = probe.node.create_publisher(Float64, contract.OUTGOING_BELT_SPEED.name,
+                                                contract.OUTGOING_BELT_SPEED.qos)
+        assert bridge.twin.container.commanded_speed == pytest.approx(0.25)
+        publisher.publish(Float64(data=0.12))
+        assert probe.spin_until(
+            lambda: bridge.twin.container.commanded_speed == pytest.approx(0.12), SPIN_TIMEOUT)
+        publisher.publish(Float64(data=math.nan))
+        publisher.publish(Float64(data=0.3))
+        assert probe.spin_until(
+            lambda: bridge.twin.container.commanded_speed == pytest.approx(0.3), SPIN_TIMEOUT)
+    finally:
+        probe.executor.remove_node(bridge)
+        bridge.destroy_node()
+        probe.close()

@@ -281,7 +281,9 @@ def test_report_renders_the_numbers_from_the_json_files(tmp_path):
 
 def test_report_of_an_empty_results_directory(tmp_path):
     text = report.render_report(report.load_results(tmp_path))
-    assert text.count('Not run') == len(paper_results.EXPERIMENTS) + 1 + len(CATALOGUE_FOLDERS)
+    assert text.count('Not run') == (len(paper_results.EXPERIMENTS) + 1 + len(CATALOGUE_FOLDERS)
+                                     + 1)
+    assert 'Not run: `conveyor_toss/summary.json` is missing' in text
 
 
 def test_command_line_refuses_bad_values(capsys):

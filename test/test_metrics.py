@@ -1,7 +1,9 @@
 """Episode metrics on synthetic trajectories with known answers."""
 
+from conftest import SOURCE_ROOT
 from dual_arm_control.core.geometry import matrix_to_quat_xyzw, rotation_exp
 from dual_arm_control.evaluation import metrics
+from dual_arm_control.evaluation.episode import METRIC_KEYS
 import numpy as np
 import pytest
 
@@ -147,3 +149,24 @@ def test_contact_gap_of_whole_cycles_is_exact(cycles_apart, within_limit):
     assert (result['contact_time_gap'] <= CONTACT_GAP_LIMIT) == within_limit
     assert result['t_grasp'] is not None
     assert 'landing_prediction_error' in result and result['landing_prediction_error'] is None
+
+
+def test_joint_speed_ratio_finds_the_joint_and_the_time_above_its_limit():
+    t = np.arange(0.0, 1.0, 0.002)
+    dq = np.zeros((t.size, 7))
+    limits = np.array([1.71, 1.71, 1.75, 2.27, 2.44, 3.14, 3.14])
+    dq[:, 3] = 3.0 * limits[3] * np.sin(np.pi * t)
+    dq[:, 0] = 0.9 * limits[0]
+    ratio, time_above, joint = metrics.joint_speed_ratio(t, dq, limits)
+    assert ratio == pytest.approx(3.0, rel=1e-4)
+    assert joint == 3
+    # 3 sin(pi t) > 1 on t in (asin(1/3) / pi, 1 - asin(1/3) / pi): 0.784 s.
+    assert time_above == pytest.approx(1.0 - 2.0 * np.arcsin(1.0 / 3.0) / np.pi, abs=0.004)
+    assert metrics.joint_speed_ratio(t, 0.5 * dq, 3.0 * limits)[1] == 0.0
+
+
+def test_the_readme_documents_every_metric_key():
+    """metrics.json keys (METRIC_KEYS) and the README's metrics contract must agree."""
+    readme = (SOURCE_ROOT / 'README.md').read_text()
+    contract = readme[readme.index('## Metrics contract'):readme.index('## Layout')]
+    assert [key for key in METRIC_KEYS if f'`{key}`' not in contract] == []

@@ -205,3 +205,31 @@ def test_invalid_config_is_refused():
         PassiveControllerConfig(damping_along=0.0)
     with pytest.raises(ConfigError, match='null_space_stiffness'):
         PassiveControllerConfig(null_space_stiffness=(1.0,) * 6)
+
+
+def joint_speed_peak(model, q_home, config, speed=1.5, seconds=0.6):
+    """Return the largest |dq| / limit of a fast DS run (speed [m/s], forward and down)."""
+    controller = PassiveController(model, q_home, config)
+    R_world_start = model.tool_pose(q_home)[1]
+    velocity = speed * np.array([0.6, 0.0, -0.8])
+
+    def desired(q):
+        return velocity, np.zeros(3), R_world_start
+
+    peak = 0.0
+    for _, dq, command in simulate(model, controller, q_home.copy(), np.zeros(7), desired,
+                                   seconds):
+        assert np.isfinite(command.torque).all()
+        peak = max(peak, float(np.max(np.abs(dq) / model.velocity_limits)))
+    return peak
+
+
+def test_the_joint_speed_brake_keeps_the_joints_near_their_limits(arm):
+    """A tool driven at 1.5 m/s from home exceeds the iiwa's joint speeds unless braked."""
+    name, model, q_home = arm
+    unbraked = joint_speed_peak(model, q_home,
+                                PassiveControllerConfig(joint_speed_brake_time=0.0))
+    braked = joint_speed_peak(model, q_home, PassiveControllerConfig(
+        joint_speed_brake_time=0.002, joint_speed_onset=0.8))
+    assert unbraked > 1.3, name
+    assert braked <= 1.05, name

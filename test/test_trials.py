@@ -199,9 +199,13 @@ def test_summarize_synthetic_trials():
         {'success': False, 'landing_error': 0.03, 'cycle_time': None, 'torque_clamp_count': 2},
         {'success': True, 'landing_error': 0.02, 'cycle_time': None, 'torque_clamp_count': 0},
         None,
-        {'success': True, 'landing_error': 0.05, 'cycle_time': None, 'torque_clamp_count': 1},
+        {'success': True, 'landing_error': 0.05, 'cycle_time': None, 'torque_clamp_count': 1,
+         'landed_in_container': True},
     ]
+    trials[1]['landed_in_container'] = False
+    trials[2]['landed_in_container'] = True
     summary = summarize(trials)
+    assert summary['true_counts'] == {'landed_in_container': 2}
     assert summary['trials'] == 5
     assert summary['success_rate'] == pytest.approx(3 / 5)
     assert set(summary['metrics']) == {'landing_error', 'torque_clamp_count'}
@@ -211,7 +215,8 @@ def test_summarize_synthetic_trials():
                                      'min': 0.01, 'max': 0.05, 'count': 4}, abs=1e-15)
     assert summary['metrics']['torque_clamp_count'] == pytest.approx(
         {'mean': 0.75, 'median': 0.5, 'p95': 1.85, 'min': 0.0, 'max': 2.0, 'count': 4})
-    assert summarize([]) == {'trials': 0, 'success_rate': None, 'metrics': {}}
+    assert summarize([]) == {'trials': 0, 'success_rate': None, 'metrics': {},
+                             'true_counts': {}}
     assert summarize([None, None])['success_rate'] == 0.0
 
 

@@ -32,6 +32,7 @@ from dual_arm_control.core.manipulation import (cooperative_manipulation_velocit
                                                 release_velocity, toss_geometry, toss_velocity,
                                                 TossConfig)
 from dual_arm_control.core.motion_signals import ArmCommand, MotionOutput
+from dual_arm_control.core.moving_target import ConveyorTossConfig
 from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_coupling,
                                                orientation_ds_angular_velocity,
@@ -56,8 +57,8 @@ class MotionGeneratorConfig:
 
     standby_positions (2, 3) [m] and standby_rotations (2, 3, 3) are the tool standby poses in the
     world, rows left, right (set by the cell, not tunable); coordination, impact, toss, lift,
-    place, speed, orientation, phases, contact, ft, reachability and release_planning are the
-    component configs (see their modules).
+    place, speed, orientation, phases, contact, ft, reachability, release_planning and conveyor
+    are the component configs (see their modules).
     """
 
     task: object = setting(
@@ -92,6 +93,7 @@ class MotionGeneratorConfig:
     ft: FtCompensationConfig = field(default_factory=FtCompensationConfig)
     reachability: ReachabilityConfig = field(default_factory=ReachabilityConfig)
     release_planning: ReleasePlanningConfig = field(default_factory=ReleasePlanningConfig)
+    conveyor: ConveyorTossConfig = field(default_factory=ConveyorTossConfig)
 
     def __post_init__(self):
         object.__setattr__(self, 'task', task_from_name(self.task))

@@ -35,9 +35,10 @@ are what mocap systems send for an untracked body: they are refused and counted 
 exception); a wrongly shaped input is a programming error and raises InputError.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 
+from dual_arm_control.core.container_tracker import ContainerTrackerConfig
 from dual_arm_control.core.estimate import (left_jacobian_so3, MeasurementOutcome, ObjectEstimate,
                                             white_acceleration_noise)
 from dual_arm_control.core.exceptions import InputError
@@ -91,6 +92,7 @@ class TrackerConfig:
     gravity: float = setting(
         9.81, 'Gravitational acceleration applied along -z during a declared free flight.',
         unit='m/s^2', low=0, high=100.0)
+    container: ContainerTrackerConfig = field(default_factory=ContainerTrackerConfig)
 
     def __post_init__(self):
         check_settings(self)

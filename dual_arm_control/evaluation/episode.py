@@ -12,8 +12,9 @@ from dual_arm_control.core.approach import (impact_directions, object_motion_dir
                                             support_height_below)
 from dual_arm_control.core.geometry import rpy_to_matrix
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.description.cell import load_cell
+from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import metrics, plots
+from dual_arm_control.evaluation.container_metrics import container_metrics
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
                                                     planned_landing, planned_release,
@@ -29,6 +30,8 @@ METRIC_KEYS = (
     'release_direction_error', 'release_orientation_error', 'landing_position', 'landing_error',
     'cycle_time', 'place_position_error', 'energy_left', 'energy_right', 'max_slip',
     'torque_clamp_count', 'refused_message_count', 'arm_collision_count', 'box_tilt_at_place',
+    'max_joint_speed_ratio_left', 'max_joint_speed_ratio_right', 'joint_speed_limit_time_left',
+    'joint_speed_limit_time_right', 'landing_error_in_container', 'landed_in_container',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -103,7 +106,7 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         v_release = data['object_velocity'][release]
         result['release_position'] = _vector(p_release)
         result['release_velocity'] = _vector(v_release)
-        planned = planned_release(scenario, cell)
+        planned = None if scenario.conveyor is not None else planned_release(scenario, cell)
         if planned is not None:
             result['release_position_error'] = float(np.linalg.norm(p_release - planned[0]))
             result['release_velocity_error'] = metrics.relative_velocity_error(
@@ -118,7 +121,13 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         height = scenario.object.size[2]
         landed = metrics.landing_index(t, data['object_position'], release + 1, 0.5 * height,
                                        cell.surface_height)
-        if scenario.task in TOSS_TASKS and landed is not None:
+        if scenario.task in TOSS_TASKS and scenario.conveyor is not None:
+            container = container_metrics(data, scenario.conveyor, height, release + 1)
+            landed = container.pop('container_landing_index')
+            result.update(container)
+            if landed is not None:
+                result['landing_position'] = _vector(data['object_position'][landed])
+        elif scenario.task in TOSS_TASKS and landed is not None:
             landing = data['object_position'][landed]
             result['landing_position'] = _vector(landing)
             predicted = predicted_landing(p_release, v_release, height, cell)
@@ -140,6 +149,10 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         drift = np.linalg.norm(data[f'{arm}_tool_position'] - data[f'{arm}_tool_position'][0],
                                axis=1)
         result[f'max_tool_drift_{arm}'] = float(drift.max())
+        ratio, time_above, _ = metrics.joint_speed_ratio(
+            t, data[f'{arm}_dq'], arm_model(arm, cell).velocity_limits)
+        result[f'max_joint_speed_ratio_{arm}'] = ratio
+        result[f'joint_speed_limit_time_{arm}'] = time_above
     for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
         result[counter] = int(data[counter]) if counter in data else None
     collision_times = data.get('arm_collision_times', np.zeros(0))
@@ -161,6 +174,8 @@ def _success(scenario, result):
     no_slip = result['max_slip'] is not None and result['max_slip'] <= SLIP_LIMIT
     if result['arm_collision_count']:
         return False
+    if scenario.task in TOSS_TASKS and scenario.conveyor is not None:
+        return grasped and no_slip and bool(result['landed_in_container'])
     if scenario.task in TOSS_TASKS:
         return (grasped and no_slip and result['release_position_error'] is not None
                 and result['release_position_error'] <= RELEASE_POSITION_LIMIT
@@ -218,6 +233,8 @@ SUMMARY_FIELDS = (('contact_time_gap', 'contact gap', 1e3, 'ms'),
                   ('release_velocity_error', 'release velocity error', 100.0, '%'),
                   ('release_orientation_error', 'release orientation error', 1.0, 'deg'),
                   ('landing_error', 'landing error', 1e3, 'mm'),
+                  ('landing_error_in_container', 'distance to the container centre', 1e3,
+                   'mm'),
                   ('place_position_error', 'place error', 1e3, 'mm'),
                   ('cycle_time', 'cycle time', 1.0, 's'))
 

@@ -51,6 +51,20 @@ def mechanical_energy(t, tau, dq):
     return time_integral(t, np.abs(joint_power(tau, dq)))
 
 
+def joint_speed_ratio(t, dq, velocity_limits):
+    """
+    Return (largest |dq| / limit over the log, time [s] above the limit, joint index 0-6).
+
+    t (N,) [s], dq (N, 7) [rad/s], velocity_limits (7,) [rad/s]. The KUKA controller stops an
+    arm whose joint exceeds its speed limit, so a motion with a ratio above 1 would not run
+    on the robot; the time counts every sample interval that starts above the limit.
+    """
+    ratio = np.abs(np.asarray(dq)) / np.asarray(velocity_limits)
+    above = ratio[:-1].max(axis=1) > 1.0
+    return (float(ratio.max()), float(np.diff(np.asarray(t))[above].sum()),
+            int(ratio.max(axis=0).argmax()))
+
+
 def first_true_index(flags, start=0):
     """Return the first index >= start where flags is true, or None."""
     indices = np.flatnonzero(np.asarray(flags, dtype=bool)[start:])

@@ -2,8 +2,8 @@
 docs/results.md from the experiments' JSON files: our numbers beside the paper's, plots linked.
 
 Reads RESULTS/<experiment>/results.json (dual_arm_experiment), RESULTS/robustness/summary.json
-(dual_arm_eval), RESULTS/robustness/displaced/metrics.json and the catalogue batches
-(CATALOGUE_FOLDERS) when present; a missing file is
+(dual_arm_eval), RESULTS/robustness/displaced/metrics.json, the catalogue batches
+(CATALOGUE_FOLDERS) and the conveyor batch (report_conveyor) when present; a missing file is
 reported as not run. Nothing in the report is typed by hand.
 """
 
@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from dual_arm_control.evaluation.paper_results import EXPERIMENTS, RESULTS_FILE
+from dual_arm_control.evaluation.report_conveyor import conveyor_section, load_conveyor
 from dual_arm_control.evaluation.report_format import MISSING, number, table
 from dual_arm_control.evaluation.report_sections import (CATALOGUE_FOLDERS,
                                                          catalogue_section, fast_toss_section,
@@ -39,6 +40,7 @@ def load_results(results_dir):
         path.relative_to(results_dir).as_posix() for folder in ('robustness',
                                                                 'robustness/displaced')
         for path in sorted((results_dir / folder).glob('*.png'))]
+    loaded['conveyor'] = load_conveyor(results_dir, _read)
     return loaded
 
 
@@ -70,7 +72,8 @@ def render_report(results, link_root='results'):
         'Wall times: ' + (', '.join(f'{name} {wall}' for name, wall in walls) or MISSING) + '.',
         '']
     for section in (fast_toss_section, workspace_section, place_vs_toss_section,
-                    robustness_section, catalogue_section, toss_to_target_section):
+                    robustness_section, catalogue_section, toss_to_target_section,
+                    conveyor_section):
         lines += section(results, link_root)
     return '\n'.join(lines).rstrip() + '\n'
 

@@ -20,11 +20,12 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402, I100  (the backend is chosen before pyplot loads)
 import numpy as np  # noqa: E402, I100
 
-# Pass/fail metrics plotted against the randomized quantities: (label, scale, limit).
+# Pass/fail metrics plotted against the randomized quantities: (label, scale, limit or None).
 SENSITIVITY_METRICS = {
     'contact_time_gap': ('contact time gap [ms]', 1000.0, CONTACT_GAP_LIMIT),
     'max_slip': ('max pad slip [cm]', 100.0, SLIP_LIMIT),
     'landing_error': ('landing error [cm]', 100.0, LANDING_LIMIT),
+    'landing_error_in_container': ('distance to the container centre [cm]', 100.0, None),
 }
 
 
@@ -53,6 +54,12 @@ def randomized_values(scenario, trial):
         values['mocap noise [mm]'] = 1000.0 * trial.sensors.mocap.position_noise
     if spec.mocap_latency is not None:
         values['mocap latency [ms]'] = 1000.0 * trial.sensors.mocap.latency
+    if spec.belt_speed is not None:
+        values['belt speed [m/s]'] = trial.conveyor.speed
+    if spec.container_start is not None:
+        values['container start y [m]'] = trial.conveyor.container_start
+    if spec.container_start_time is not None:
+        values['belt start time [s]'] = trial.conveyor.container_start_time
     return values
 
 
@@ -123,6 +130,9 @@ def plot_batch(outcomes, trials, scenario, out_dir, cell):
     if landing_errors:
         _plot_landing_positions(outcomes, trials, cell, out_dir / 'landing_positions.png')
         written.append('landing_positions.png')
+    if _values(outcomes, 'landing_offset_in_container'):
+        _plot_container_landings(outcomes, trials, out_dir / 'container_landings.png')
+        written.append('container_landings.png')
     drawn = [randomized_values(scenario, trial) for trial in trials]
     if drawn and drawn[0]:
         _plot_sensitivity(outcomes, drawn, out_dir / 'sensitivity.png')
@@ -157,6 +167,31 @@ def _plot_landing_positions(outcomes, trials, cell, path):
     save_figure(figure, path)
 
 
+def _plot_container_landings(outcomes, trials, path):
+    """Where the box passed the container's rim, relative to its centre, inside the opening."""
+    figure, axis = plt.subplots(figsize=(6, 5))
+    conveyor, box = trials[0].conveyor, trials[0].object.size
+    for size, style, label in ((conveyor.inner_size, '-', 'opening'),
+                               (np.asarray(conveyor.inner_size) - box[:2], '--',
+                                'box centre clears the walls')):
+        axis.add_patch(plt.Rectangle((-0.5 * size[0] * 100, -0.5 * size[1] * 100),
+                                     size[0] * 100, size[1] * 100, fill=False,
+                                     linestyle=style, color='k', label=label))
+    for outcome, trial in zip(outcomes, trials):
+        offset = outcome.metrics and outcome.metrics.get('landing_offset_in_container')
+        if offset is not None:
+            axis.plot(100 * offset[0], 100 * offset[1], 'o', markersize=4, alpha=0.7,
+                      color='tab:green' if succeeded(outcome) else 'tab:red')
+    axis.plot([], [], 'o', color='tab:green', label='trial passed')
+    axis.plot([], [], 'o', color='tab:red', label='trial failed')
+    axis.set_aspect('equal', adjustable='datalim')
+    axis.set_xlabel('box centre - container centre, world x (across the belt) [cm]')
+    axis.set_ylabel('world y (along the belt) [cm]')
+    axis.grid(True, alpha=0.3)
+    axis.legend(fontsize=8)
+    save_figure(figure, path)
+
+
 def _plot_sensitivity(outcomes, drawn, path):
     """
     Each pass/fail metric against each randomized quantity (green: trial passed, red: failed).
@@ -169,7 +204,7 @@ def _plot_sensitivity(outcomes, drawn, path):
                                 sharex='col', sharey='row', squeeze=False)
     for row, key in zip(axes, rows):
         label, scale, limit = SENSITIVITY_METRICS[key]
-        top = scale * max(_values(outcomes, key) + [limit]) * 1.1
+        top = scale * max(_values(outcomes, key) + ([] if limit is None else [limit])) * 1.1
         for axis, name in zip(row, names):
             for outcome, values in zip(outcomes, drawn):
                 colour = 'tab:green' if succeeded(outcome) else 'tab:red'
@@ -179,7 +214,8 @@ def _plot_sensitivity(outcomes, drawn, path):
                 else:
                     axis.plot(values[name], scale * value, 'o', color=colour, markersize=3,
                               alpha=0.7)
-            axis.axhline(scale * limit, color='tab:red', linestyle='--', linewidth=1.0)
+            if limit is not None:
+                axis.axhline(scale * limit, color='tab:red', linestyle='--', linewidth=1.0)
             axis.grid(True, alpha=0.3)
         row[0].set_ylabel(label)
     for axis, name in zip(axes[-1], names):

@@ -41,13 +41,15 @@ def _numeric(value):
 
 def summarize(metrics_list):
     """
-    Aggregate the trials' metrics: return {'trials', 'success_rate', 'metrics'}.
+    Aggregate the trials' metrics: return {'trials', 'success_rate', 'metrics', 'true_counts'}.
 
     metrics_list holds one metrics dict per trial, or None for a trial that produced none (it
     counts as a failure). success_rate = trials with success true / all trials. For every key
     whose non-null values are all numbers (bools excluded), 'metrics' gives mean, median, p95
     (numpy percentile, linear interpolation), min and max over the trials where it is not
-    null, and count = the number of those trials. Keys keep the order they first appear in.
+    null, and count = the number of those trials; for every key whose non-null values are all
+    bools but success, 'true_counts' gives how many trials have it true (e.g. landed_in_container).
+    Keys keep the order they first appear in.
     """
     trials = len(metrics_list)
     present = [metrics for metrics in metrics_list if metrics]
@@ -58,6 +60,8 @@ def summarize(metrics_list):
             if value is not None:
                 values.setdefault(key, []).append(value)
     statistics = {}
+    true_counts = {key: sum(items) for key, items in values.items() if key != 'success'
+                   and all(isinstance(item, bool) for item in items)}
     for key, items in values.items():
         if not all(_numeric(item) for item in items):
             continue
@@ -66,7 +70,7 @@ def summarize(metrics_list):
                            'p95': float(np.percentile(array, 95)), 'min': float(array.min()),
                            'max': float(array.max()), 'count': int(array.size)}
     return {'trials': trials, 'success_rate': successes / trials if trials else None,
-            'metrics': statistics}
+            'metrics': statistics, 'true_counts': true_counts}
 
 
 def _exceeds(key, value, limit, unit):
@@ -88,7 +92,9 @@ def failure_reason(task, metrics):
     gap = metrics.get('contact_time_gap')
     drifts = [metrics.get(f'max_tool_drift_{arm}') for arm in ARMS]
     if gap is None and all(drift is not None and drift < STANDBY_DRIFT for drift in drifts):
-        reasons.append('no reach: the arms stayed at standby (grasp refused as out of reach)')
+        reasons.append('no reach: the arms stayed at standby (' + (
+            'the container never came in range, or the grasp was refused'
+            if 'landed_in_container' in metrics else 'grasp refused as out of reach') + ')')
     elif gap is None:
         reasons.append('no contact of both pads')
     elif gap > CONTACT_GAP_LIMIT:
@@ -103,6 +109,12 @@ def failure_reason(task, metrics):
                    ('release_orientation_error', RELEASE_ORIENTATION_LIMIT, 'deg')]
         if metrics.get('t_grasp') is not None and metrics.get('t_release') is None:
             reasons.append('no release')
+        elif metrics.get('landed_in_container') is True:
+            pass
+        elif metrics.get('landed_in_container') is False:
+            offset = metrics.get('landing_error_in_container')
+            reasons.append('not in the container' + (
+                '' if offset is None else f' ({offset * 1e3:.0f} mm from its centre at the rim)'))
         elif metrics.get('t_release') is not None and metrics.get('landing_error') is None:
             reasons.append('no landing within the run')
     elif task in PLACE_TASKS:

@@ -138,7 +138,8 @@ def main(argv=None):
                 for outcome in outcomes if not succeeded(outcome)]
     summary = {'scenario': str(source), 'runner': args.runner, 'trials': aggregate['trials'],
                'jobs': jobs, 'seed': scenario.seed, 'success_rate': aggregate['success_rate'],
-               'metrics': aggregate['metrics'], 'failures': failures,
+               'metrics': aggregate['metrics'], 'true_counts': aggregate['true_counts'],
+               'failures': failures,
                'wall_time': wall_time, 'trials_per_hour': 3600.0 * args.trials / wall_time}
     (args.out / 'summary.json').write_text(json.dumps(summary, indent=2) + '\n')
     plot_batch(outcomes, trials, scenario, args.out, cell)

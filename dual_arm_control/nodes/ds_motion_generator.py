@@ -12,7 +12,9 @@ landing target, controller timeout and rates. The stamps of both controllers' to
 tell it they are alive; one silent for controller_timeout halts the task (MotionGeneratorStep).
 Services start an episode, send the arms home and reset. A new landing_target, set as a
 parameter or as a point on /dual_arm/landing_target (frame world), re-plans the toss's release
-state for it, or is refused with the reason.
+state for it, or is refused with the reason. With a conveyor in the scenario the tracker's
+container estimate (/container/state) is one more tick input, and the toss aims at the
+container (runtime.motion_step).
 """
 
 import sys
@@ -72,13 +74,16 @@ class DsMotionGenerator(Node):
         # Lockstep: a cycle waits for all its inputs (and, on ticks, the estimate stamped with
         # it). Realtime: take-latest, the left joint state triggers the cycle.
         lockstep = settings['lockstep']
+        conveyor = parameters.config.conveyor.enabled
+        tick_inputs = TICK_INPUTS | ({'container'} if conveyor else set())
         if lockstep:
             self._barrier = ArrivalBarrier(
-                lambda t: TICK_INPUTS if self.step.is_new_tick(t) else CYCLE_TRIGGER)
+                lambda t: tick_inputs if self.step.is_new_tick(t) else CYCLE_TRIGGER)
         else:
             self._barrier = ArrivalBarrier(lambda t: CYCLE_TRIGGER)
         refuse = self.step.refusals.refuse
-        self._inputs = {'object': LatestMessage(object_state_of, 'object', refuse)}
+        self._inputs = {name: LatestMessage(object_state_of, name, refuse)
+                        for name in ('object', 'container')}
         for arm in ARMS:
             self._inputs[f'{arm}_joints'] = LatestMessage(
                 lambda msg, names=joint_names(arm): joint_state_of(msg, names), f'{arm}_joints',
@@ -111,6 +116,11 @@ class DsMotionGenerator(Node):
         self.create_subscription(contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
                                  lambda msg: self._on_input('object', msg),
                                  contract.OBJECT_STATE.subscription_qos(lockstep))
+        if conveyor:
+            self.create_subscription(contract.CONTAINER_STATE.msg_type,
+                                     contract.CONTAINER_STATE.name,
+                                     lambda msg: self._on_input('container', msg),
+                                     contract.CONTAINER_STATE.subscription_qos(lockstep))
         self.create_subscription(contract.LANDING_TARGET.msg_type, contract.LANDING_TARGET.name,
                                  self._on_landing_target, contract.LANDING_TARGET.qos)
         for service, command in ((contract.START_EPISODE_SERVICE, 'start'),
@@ -182,7 +192,8 @@ class DsMotionGenerator(Node):
             ft = {arm: self._inputs[f'{arm}_ft'].value() for arm in ARMS}
             if None in joints.values() or None in ft.values():
                 continue
-            tick = self.step.cycle(t_ns, joints, ft, self._inputs['object'].value())
+            tick = self.step.cycle(t_ns, joints, ft, self._inputs['object'].value(),
+                                   self._inputs['container'].value())
             if tick is not None:
                 self._publish(tick)
 

@@ -10,7 +10,10 @@ the estimate at its stamp (none for a stamp older than the last sample): the bri
 an answer to each sample it sent, and a stray sample with a newer stamp would otherwise stall
 the graph; the cycle's own answer follows and is the one the DS and QP use. What is refused, and
 when a new TrackerConfig applies, is the runtime step's business (runtime/tracker_step.py).
-Parameters: the TrackerConfig fields (live), lockstep and diagnostics_period.
+With track_container the node tracks a conveyor's container as well: each
+/mocap/container_pose sample is answered on /container/state (stamped with it), and in lockstep
+each /clock too, right after the object's answer (the lockstep bridge and DS wait for these).
+Parameters: the TrackerConfig fields (live), lockstep, track_container and diagnostics_period.
 """
 
 import sys
@@ -45,6 +48,16 @@ class ObjectTrackerNode(Node):
         self._mocap_sub = self.create_subscription(
             contract.MOCAP_OBJECT_POSE.msg_type, contract.MOCAP_OBJECT_POSE.name, self._on_mocap,
             contract.MOCAP_OBJECT_POSE.subscription_qos(settings['lockstep']))
+        self._container_pub = None
+        if settings['track_container']:
+            self._container_msg = contract.CONTAINER_STATE.msg_type()
+            self._container_msg.header.frame_id = contract.WORLD_FRAME
+            self._container_msg.child_frame_id = 'container'
+            self._container_pub = create_topic_publisher(self, contract.CONTAINER_STATE)
+            self.create_subscription(
+                contract.MOCAP_CONTAINER_POSE.msg_type, contract.MOCAP_CONTAINER_POSE.name,
+                self._on_container_mocap,
+                contract.MOCAP_CONTAINER_POSE.subscription_qos(settings['lockstep']))
         if settings['lockstep']:
             self.create_subscription(contract.CLOCK.msg_type, contract.CLOCK.name,
                                      self._on_clock, contract.CLOCK.qos)
@@ -76,6 +89,21 @@ class ObjectTrackerNode(Node):
 
     def _on_clock(self, msg):
         self._publish(self.step.at(stamp_ns(msg.clock)))
+        if self._container_pub is not None:
+            self._publish_container(self.step.container_at(stamp_ns(msg.clock)))
+
+    def _on_container_mocap(self, msg):
+        sample_ns = stamp_ns(msg.header.stamp)
+        state = self.step.container_sample(sample_ns, vector3(msg.pose.position))
+        if state is None and self._lockstep:
+            state = self.step.container_at(sample_ns)
+        if state is not None:
+            self._publish_container(state)
+
+    def _publish_container(self, state):
+        fill_object_state(self._container_msg, state)
+        self._container_pub.publish(self._container_msg)
+        self.states_published += 1
 
     def _publish(self, state):
         fill_object_state(self._state_msg, state)

@@ -37,6 +37,10 @@ def motion_config_for_scenario(scenario, cell, base=None):
     config = replace(config, toss=toss)
     if scenario.landing_target is not None:
         config = config_for_landing_target(config, scenario.landing_target)
+    if scenario.conveyor is not None and scenario.task in TOSS_TASKS:
+        config = replace(config, conveyor=replace(
+            config.conveyor, enabled=True, landing_height=float(
+                scenario.conveyor.rim_height + 0.5 * scenario.object.size[2])))
     if scenario.place is not None:
         pressed = np.asarray(scenario.place, dtype=float) - [0.0, 0.0, PLACE_PRESS_DEPTH]
         config = replace(config, place=replace(base.place, position=tuple(pressed)))
@@ -53,6 +57,11 @@ def config_for_landing_target(config, target):
     """
     plan = plan_release(np.asarray(target, dtype=float),
                         np.asarray(TossConfig().release_position), config.release_planning)
+    return config_for_release_plan(config, plan)
+
+
+def config_for_release_plan(config, plan):
+    """Return config with its toss release set to a ReleasePlan's point, direction and speed."""
     speed = float(np.linalg.norm(plan.velocity))
     return replace(config, toss=replace(config.toss, release_position=tuple(plan.position),
                                         release_direction=tuple(plan.velocity / speed),

@@ -2,9 +2,9 @@
 The FRI cycle of the robots' side: state out, one torque command per arm in, then a step.
 
 FriCycle drives a backend (the MuJoCo twin, or anything with its interface: time,
-joint_state(arm), ft_wrench(arm), mocap_samples(), hold_torques(arm, stop_position),
-step(torques) returning
-what it clamped and applied) the way KUKA's FRI drives a robot:
+joint_state(arm), ft_wrench(arm), mocap_samples(), container_mocap_samples(),
+hold_torques(arm, stop_position), step(torques) returning what it clamped and applied) the way
+KUKA's FRI drives a robot:
 
 - begin() returns the state of the current cycle (what the robots report) and awaits one command
   per arm stamped with it;
@@ -31,6 +31,7 @@ from dual_arm_control.runtime.timing import seconds_to_ns
 import numpy as np
 
 REFUSAL_REASONS = ('non_finite', 'wrong_length', 'joint_names')
+_IDENTITY_QUAT = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def command_refusal(names, efforts, expected_names):
@@ -81,12 +82,18 @@ class ArmCounters:
 
 @dataclass(frozen=True)
 class CycleState:
-    """What the robots report at one cycle: joints and FT per arm, delivered mocap samples."""
+    """
+    What the robots report at one cycle: joints and FT per arm, delivered mocap samples.
+
+    container_mocap: the delivered samples of a conveyor's container, PoseSamples with the
+    identity orientation (none without a conveyor).
+    """
 
     stamp_ns: int
     joints: dict
     ft_wrenches: dict
     mocap: tuple
+    container_mocap: tuple = ()
 
 
 class FriCycle:
@@ -122,7 +129,10 @@ class FriCycle:
                 self.backend.ft_wrench(arm))) for arm in ARMS},
             mocap=tuple(PoseSample(seconds_to_ns(sample.stamp), sample.p_world,
                                    sample.quat_xyzw)
-                        for sample in self.backend.mocap_samples()))
+                        for sample in self.backend.mocap_samples()),
+            container_mocap=tuple(PoseSample(seconds_to_ns(sample.stamp), sample.p_world,
+                                             _IDENTITY_QUAT)
+                                  for sample in self.backend.container_mocap_samples()))
 
     def _joint_state(self, arm):
         sample = self.backend.joint_state(arm)

@@ -15,7 +15,12 @@ unreachable grasp is refused with its reason: the arms stay in standby and the t
 carries the event 'unreachable'. A landing target given while the
 episode runs (set_landing_target) re-plans the release state (core.toss_planning) and applies it
 at the next tick, until the box is released; a target no release serves, or one that comes after
-the release, is refused with its reason. A tick whose inputs the generator
+the release, is refused with its reason. With a conveyor (config.conveyor.enabled) every tick
+up to the release aims the toss at the container's predicted position at the predicted landing
+(runtime.conveyor_aim, given the tracker's container estimate): the start waits at standby,
+event 'waiting_for_container' with the reason, until the container will be in the landing
+range at the landing, then event 'container_in_range'; after the start a tick that cannot aim
+keeps the previous aim. A tick whose inputs the generator
 refuses is answered with a stop command (zero velocity at the
 current tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
 
@@ -36,6 +41,7 @@ from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.reachability import plan_grasp
 from dual_arm_control.runtime.configuration import config_for_landing_target
 from dual_arm_control.runtime.controller_watch import ControllerWatch
+from dual_arm_control.runtime.conveyor_aim import container_aim
 from dual_arm_control.runtime.inputs import RefusalCounter
 from dual_arm_control.runtime.signals import arm_command_from, PhaseSample, TwistSample
 from dual_arm_control.runtime.timing import estimate_at, TickSchedule
@@ -91,6 +97,8 @@ class MotionGeneratorStep:
         self._last_tick = None
         self.grasp_plan = None
         self.controllers.restart()
+        self.container_aim = None
+        self.waiting_reason = ''
 
     @property
     def config(self):
@@ -155,12 +163,13 @@ class MotionGeneratorStep:
         """Return True if the cycle stamp_ns is a DS tick not computed yet."""
         return self._schedule.due(stamp_ns) and stamp_ns != self._schedule.last_tick_ns
 
-    def cycle(self, stamp_ns, joints, ft_wrenches, estimate):
+    def cycle(self, stamp_ns, joints, ft_wrenches, estimate, container=None):
         """
         Advance on one FRI cycle; return its MotionTick on DS ticks, else None.
 
         joints {arm: JointStateSample}; ft_wrenches {arm: WrenchSample} (raw sensor readings);
-        estimate: the newest ObjectState (predicted to the cycle with its own twist), or None.
+        estimate: the newest ObjectState (predicted to the cycle with its own twist), or None;
+        container: the tracker's ObjectState of the conveyor's container, or None.
         """
         if self._schedule.went_back(stamp_ns):
             self._start_over(self._pending_config or self._generator.config)
@@ -182,8 +191,16 @@ class MotionGeneratorStep:
             arms[arm] = ArmMeasurement(p_world_tool, R_world_tool, ft_wrenches[arm].wrench,
                                        R_world_sensor)
         has_object = estimate is not None and estimate.valid
-        start = self._requests['start'] or (not self._started and has_object
-                                            and stamp_ns >= self._auto_start_ns)
+        aim_reason = self._aim_at_container(stamp_ns, arms, estimate, container)
+        requested = self._requests['start']
+        start = requested or (not self._started and has_object
+                              and stamp_ns >= self._auto_start_ns)
+        container_events = ()
+        if start and aim_reason:
+            container_events = () if self.waiting_reason else ('waiting_for_container',)
+            self.waiting_reason, start = aim_reason, False
+        elif start and self.waiting_reason:
+            container_events, self.waiting_reason = ('container_in_range',), ''
         self._started = self._started or start
         lost_reason = self._halt_if_lost(stamp_ns)
         refused_start = ''
@@ -200,9 +217,12 @@ class MotionGeneratorStep:
             self._last_tick = _stop_tick(stamp_ns, arms, self._generator)
             return self._last_tick
         self._requests = dict.fromkeys(COMMANDS, False)
+        self._requests['start'] = requested and bool(self.waiting_reason)
         phase = output.phase
         reason = '' if phase.transition is None else phase.transition.reason
         events = phase.events
+        if container_events:
+            events, reason = tuple(events) + container_events, self.waiting_reason or reason
         if refused_start:
             events, reason = tuple(events) + ('unreachable',), refused_start
         if lost_reason:
@@ -226,6 +246,24 @@ class MotionGeneratorStep:
         silences = ', '.join(
             f'{arm} ({self.controllers.silence_ns(arm, stamp_ns) * 1e-9:.3f} s)' for arm in lost)
         return f'controller lost, no torque command: {silences}; the task stops where it is'
+
+    def _aim_at_container(self, stamp_ns, arms, estimate, container):
+        """Aim the toss at the container (conveyor only); return why it cannot, else ''."""
+        config = self._generator.config
+        phase = self._generator.phase
+        if not config.conveyor.enabled or phase in (Phase.RELEASE, Phase.RETRACT) or (
+                self._started and phase is Phase.STANDBY and not self.waiting_reason):
+            return ''
+        time_in_phase = 0.0 if self._last_tick is None else self._last_tick.phase.time_in_phase
+        release_point = (None if phase in (Phase.STANDBY, Phase.REACH)
+                         else config.toss.release_position)
+        self.container_aim = container_aim(
+            stamp_ns, config, phase, time_in_phase,
+            {arm: arms[arm].p_world_tool for arm in ARMS}, estimate, container,
+            self._generator.grasp[0], release_point)
+        if self.container_aim.config is not None:
+            self._generator.reconfigure(self.container_aim.config)
+        return self.container_aim.reason
 
     def _plan_grasp(self, joints, estimate, stamp_ns):
         """Check the grasp before the reach; use its shift, or return why it is refused."""

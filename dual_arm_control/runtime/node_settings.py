@@ -124,6 +124,10 @@ NODE_TABLES = {
         Setting('lockstep', False, 'also answer every /clock cycle with the estimate at the '
                 'cycle (or that there is none yet), which the lockstep DS and wrench QP wait for; '
                 'false: answer the mocap samples only (realtime)', read_only=True),
+        Setting('track_container', False, "track a conveyor's container too: filter "
+                '/mocap/container_pose and answer each sample and, with lockstep, each cycle on '
+                '/container/state (the launcher sets it for a scenario with a conveyor)',
+                read_only=True),
         DIAGNOSTICS_PERIOD), TrackerConfig),
     'ds_motion_generator': NodeTable((
         SCENARIO,

@@ -11,8 +11,14 @@ but a clock that went back (simulation reset): the filter restarts at that sampl
 A new TrackerConfig is applied at the next sample by restarting the filter when that costs
 nothing: no track yet, track lost, or the object at rest (the restart takes the measured pose
 and zero velocity). While the object moves the change stays pending.
+
+The container of a conveyor has a filter of its own (core.container_tracker), fed by its mocap
+stream in the same way (container_sample, container_at); its estimates are ObjectStates with an
+identity orientation and the filter's position and velocity covariances. Its config (the
+TrackerConfig's `container`) is taken when its track starts, or restarts after a time reset.
 """
 
+from dual_arm_control.core.container_tracker import ContainerTracker
 from dual_arm_control.core.estimate import MeasurementOutcome
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.tracker import ObjectTracker
@@ -36,6 +42,7 @@ OUTCOME_COUNTERS = {
     MeasurementOutcome.REJECTED_STALE: 'samples_rejected_stale',
     MeasurementOutcome.REJECTED_INVALID: 'samples_rejected_invalid',
 }
+_IDENTITY_QUAT = np.array([0.0, 0.0, 0.0, 1.0])
 
 
 def _block_diagonal(upper, lower):
@@ -54,16 +61,28 @@ def _state(stamp_ns, estimate):
                                        estimate.angular_velocity_covariance))
 
 
+def _container_state(stamp_ns, prediction):
+    """Return the ObjectState of a ContainerPrediction (identity orientation, no rotation)."""
+    return ObjectState(stamp_ns, True, prediction.position, _IDENTITY_QUAT,
+                       prediction.velocity, np.zeros(3),
+                       _block_diagonal(prediction.position_variance * np.eye(3), np.zeros((3, 3))),
+                       _block_diagonal(prediction.velocity_variance * np.eye(3), np.zeros((3, 3))))
+
+
 class TrackerStep:
     """The tracker role; config: TrackerConfig; on_refusal as RefusalCounter's."""
 
     def __init__(self, config, on_refusal=None):
         self._tracker = ObjectTracker(config)
+        self._container = ContainerTracker(config.container)
+        self._container_stamp_ns = None
         self._pending_config = None
         self._last_stamp_ns = None
         self.refusals = RefusalCounter(on_refusal)
-        self.counters = dict.fromkeys(('samples_received', 'config_changes_applied',
-                                       'time_resets', *OUTCOME_COUNTERS.values()), 0)
+        self.counters = dict.fromkeys(
+            ('samples_received', 'config_changes_applied', 'time_resets',
+             *OUTCOME_COUNTERS.values(), 'container_samples_received',
+             *(f'container_{name}' for name in OUTCOME_COUNTERS.values())), 0)
 
     @property
     def config(self):
@@ -118,6 +137,28 @@ class TrackerStep:
             return no_object_state(stamp_ns)
         mean = self._tracker.mean_state(stamp_ns / NANOSECONDS_PER_SECOND)
         return ObjectState(stamp_ns, True, *mean)
+
+    def container_sample(self, stamp_ns, position):
+        """Filter one container sample; return the ObjectState at its stamp, or None if refused."""
+        self.counters['container_samples_received'] += 1
+        if self._container_stamp_ns is not None and (self._container_stamp_ns - int(stamp_ns)
+                                                     > seconds_to_ns(TIME_RESET_GAP)):
+            self._container = ContainerTracker(self.config.container)
+        outcome = self._container.update(int(stamp_ns) / NANOSECONDS_PER_SECOND, position)
+        self.counters[f'container_{OUTCOME_COUNTERS[outcome]}'] += 1
+        if outcome in (MeasurementOutcome.REJECTED_INVALID, MeasurementOutcome.REJECTED_STALE):
+            self.refusals.refuse('container_sample', f'container sample at {stamp_ns} ns: '
+                                                     f'{outcome.value}')
+            return None
+        self._container_stamp_ns = int(stamp_ns)
+        return self.container_at(stamp_ns)
+
+    def container_at(self, stamp_ns):
+        """Return the container's ObjectState at a stamp, with covariances (or none yet)."""
+        prediction = self._container.prediction(int(stamp_ns) / NANOSECONDS_PER_SECOND)
+        if prediction is None:
+            return no_object_state(stamp_ns)
+        return _container_state(int(stamp_ns), prediction)
 
     def tracking(self):
         """Return True while a track runs and is not lost."""
