@@ -15,6 +15,7 @@ from dual_arm_control.runtime.node_settings import FRI_PERIOD
 from dual_arm_control.tools.faults.outcome import (DROP_HEIGHT_LIMIT, fill_from_trajectory,
                                                    SETTLED_TOOL_SPEED, TrialOutcome)
 from dual_arm_control.tools.faults.trial import cell, prepare_trial, torque_limits
+import numpy as np
 import pytest
 
 MS = 1_000_000
@@ -35,9 +36,15 @@ def test_a_controller_is_lost_only_after_it_was_heard_and_then_silent_too_long()
     assert watch.newly_lost(13 * MS) == ('right',)
     assert watch.newly_lost(20 * MS) == (), 'a loss is reported once'
     watch.heard('left', 20 * MS + FUTURE_TOLERANCE_NS + 1)
+    assert watch.newly_lost(31 * MS) == (), 'none heard: the watcher is behind, not judged'
+    watch.heard('right', 30 * MS)
     assert watch.newly_lost(31 * MS) == ('left',), 'a command from the future is not believed'
     watch.restart()
     assert watch.lost_arms == () and watch.newly_lost(500 * MS) == ()
+    watch.heard('left', 500 * MS)
+    watch.heard('right', 595 * MS)
+    assert watch.newly_lost(600 * MS, judge=False) == (), 'not judged (standby)'
+    assert watch.newly_lost(600 * MS) == ('left',)
 
 
 def kill_while_carrying(tmp_path, controller_timeout=None):
@@ -70,3 +77,14 @@ def test_without_the_motion_generator_halt_the_box_falls(tmp_path):
     """The robot's hold alone cannot keep the box: the partner arm carries it on."""
     outcome, _ = kill_while_carrying(tmp_path, controller_timeout=0.0)
     assert outcome.drop_height > DROP_HEIGHT_LIMIT
+
+
+@pytest.mark.slow
+def test_a_controller_dead_before_the_episode_halts_it_at_the_start_of_the_reach(tmp_path):
+    """Silence in standby is not judged (realtime start-up); at the reach the task halts."""
+    trial = prepare_trial(0, tmp_path)
+    data = run_episode(trial.scenario, RunnerConfig(controller_deaths=(('left', 0.1),)),
+                       cell=cell(), duration=1.0).trajectory
+    moved = np.linalg.norm(data['right_tool_position'] - data['right_tool_position'][0], axis=1)
+    print(f'the living arm moved at most {moved.max() * 1e3:.1f} mm')
+    assert moved.max() < 0.01, 'the living arm reached for the box with its partner dead'

@@ -5,8 +5,9 @@ Every torque command an arm's controller sends (heard()) says it is alive at its
 DS tick lost() names the arms whose controller, heard before, has been silent for longer than
 the timeout (sim time): the robot then holds that arm in place, and the motion generator must
 stop the task rather than carry the box away from the held arm. A controller never heard is not
-judged (the graph may still be starting); a loss is kept until restart() (a new episode after a
-clock reset), so the task is stopped once. Stamps further ahead of the newest cycle than
+judged (the graph may still be starting), nor any while none is heard (the watcher is behind);
+a loss is kept until restart() (a new episode after a clock reset), so the task is stopped
+once. Stamps further ahead of the newest cycle than
 FUTURE_TOLERANCE are ignored, so a stray message from the future cannot mask a dead controller.
 """
 
@@ -49,13 +50,31 @@ class ControllerWatch:
         if last is None or stamp_ns > last:
             self._last_ns[arm] = int(stamp_ns)
 
-    def newly_lost(self, stamp_ns):
-        """Return the arms found lost at cycle stamp_ns that were not lost before (a tuple)."""
+    def newly_lost(self, stamp_ns, judge=True):
+        """
+        Return the arms found lost at cycle stamp_ns that were not lost before (a tuple).
+
+        judge False only notes the cycle (the newest stamp a command may carry) and finds none.
+        """
         self._now_ns = stamp_ns if self._now_ns is None else max(self._now_ns, stamp_ns)
+        if not judge or not self._any_heard_within_timeout(stamp_ns):
+            return ()
         new = tuple(arm for arm in ARMS if arm not in self.lost_arms
                     and controller_silent(self._last_ns[arm], stamp_ns, self.timeout_ns))
         self.lost_arms += new
         return new
+
+    def _any_heard_within_timeout(self, stamp_ns):
+        """
+        Return True if some controller was heard within the timeout before stamp_ns.
+
+        Why: when no controller is heard at all, the watcher itself is more likely behind (its
+        process stalled, the commands still queued; seen in realtime: both silent for 24 ms at
+        once) than every controller dead at the same cycle; and with every arm held by the
+        robot a halt would command no one.
+        """
+        return any(last is not None and stamp_ns - last <= self.timeout_ns
+                   for last in self._last_ns.values())
 
     def silence_ns(self, arm, stamp_ns):
         """Return how long arm's controller has been silent at stamp_ns [ns] (None: unheard)."""
