@@ -42,7 +42,9 @@ class Randomization:
     high) [deg] (yaw of the object's orientation at release, toss tasks), belt_speed (low,
     high) [m/s], container_start (low, high) [m] and container_start_time (low, high) [s]
     (the scenario's conveyor: its speed, the container's start y and start time): ranges drawn
-    uniformly, None keeps the scenario's (or the drawn type's) value. The controllers are
+    uniformly, None keeps the scenario's (or the drawn type's) value; landing_target (2,)
+    half-ranges [m] of the offset of the scenario's landing target along world x and y
+    (toss_to_target), or None. The controllers are
     given the drawn object (the scenario is their prior as well as the twin's truth).
     """
 
@@ -58,6 +60,7 @@ class Randomization:
     belt_speed: object = None
     container_start: object = None
     container_start_time: object = None
+    landing_target: object = None
 
     def __post_init__(self):
         if self.object_types is not None:
@@ -71,6 +74,11 @@ class Randomization:
         for half_range in position:
             check_range('randomization.object_position', half_range, 0.0, 0.5, 'm')
         object.__setattr__(self, 'object_position', position)
+        if self.landing_target is not None:
+            target = frozen_vector('randomization.landing_target', self.landing_target, 2, 'm')
+            for half_range in target:
+                check_range('randomization.landing_target', half_range, 0.0, 1.0, 'm')
+            object.__setattr__(self, 'landing_target', target)
         check_range('randomization.object_yaw', self.object_yaw, 0.0, math.pi, 'rad')
         for name, (unit, low, high, zero_allowed) in RANDOMIZED_RANGES.items():
             value = getattr(self, name)
@@ -111,6 +119,9 @@ def read_randomization(reader, data, catalogue_path=None):
                                                   'randomization', 'm')
     if 'object_yaw' in entry:
         values['object_yaw'] = reader.number(entry, 'object_yaw', 'randomization')
+    if 'landing_target' in entry:
+        values['landing_target'] = reader.vector(entry, 'landing_target', (2,),
+                                                 'randomization', 'm')
     for key, (unit, *_) in RANDOMIZED_RANGES.items():
         if key in entry:
             values[key] = reader.vector(entry, key, (2,), 'randomization', unit)
@@ -126,4 +137,6 @@ def randomization_document(spec):
                  object_yaw=float(spec.object_yaw))
     entry.update({name: [float(value) for value in getattr(spec, name)]
                   for name in RANDOMIZED_RANGES if getattr(spec, name) is not None})
+    if spec.landing_target is not None:
+        entry['landing_target'] = [float(value) for value in spec.landing_target]
     return entry

@@ -177,6 +177,10 @@ class Scenario:
                                                              Randomization):
             raise ConfigError(f'randomization must be a Randomization or None, got '
                               f'{self.randomization!r}')
+        if (self.randomization is not None and self.randomization.landing_target is not None
+                and self.landing_target is None):
+            raise ConfigError('randomization.landing_target offsets the landing_target, and '
+                              'the scenario has none (task toss_to_target)')
 
 
 def scenario_path(name_or_path):

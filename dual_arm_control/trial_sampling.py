@@ -22,6 +22,8 @@ TRIAL_DRAWS = ('object_x', 'object_y', 'object_yaw', 'mass', 'size_scale', 'fric
 LATER_DRAWS = ('object_type', 'mocap_latency', 'release_yaw')
 # The conveyor's draws, from a third generator.
 CONVEYOR_DRAWS = ('belt_speed', 'container_start', 'container_start_time')
+# The landing target's offsets, from a fourth generator.
+TARGET_DRAWS = ('landing_target_x', 'landing_target_y')
 
 
 def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
@@ -33,7 +35,9 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
     fixed order (adding a range to a file leaves the other quantities' draws unchanged), then
     the trial's own seed, so every trial has different but reproducible sensor noise; a
     second, SeedSequence([seed, trial_index, 1]), draws LATER_DRAWS, and a third,
-    SeedSequence([seed, trial_index, 2]), the CONVEYOR_DRAWS of a scenario's conveyor. A
+    SeedSequence([seed, trial_index, 2]), the CONVEYOR_DRAWS of a scenario's conveyor, and a
+    fourth, SeedSequence([seed, trial_index, 3]), the TARGET_DRAWS (the landing target's
+    offsets along world x and y). A
     drawn object type replaces the box's size, mass and friction by its catalogue values
     before the ranges apply.
     The box rests on the surface below its drawn position as the scenario's did; resting
@@ -52,6 +56,9 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
     conveyor_draws = np.random.default_rng(np.random.SeedSequence([scenario.seed, trial_index,
                                                                    2]))
     draw.update(zip(CONVEYOR_DRAWS, conveyor_draws.random(len(CONVEYOR_DRAWS))))
+    target_draws = np.random.default_rng(np.random.SeedSequence([scenario.seed, trial_index,
+                                                                 3]))
+    draw.update(zip(TARGET_DRAWS, target_draws.random(len(TARGET_DRAWS))))
     spec = scenario.randomization or Randomization()
 
     def from_range(name, default):
@@ -103,8 +110,13 @@ def sample_trial(scenario, trial_index, cell=None, catalogue_path=None):
             container_start=from_range('container_start', conveyor.container_start),
             container_start_time=from_range('container_start_time',
                                             conveyor.container_start_time))
+    landing_target = scenario.landing_target
+    if spec.landing_target is not None and landing_target is not None:
+        landing_target = np.array(landing_target, dtype=float) + [
+            offset('landing_target_x', spec.landing_target[0]),
+            offset('landing_target_y', spec.landing_target[1]), 0.0]
     return replace(scenario, seed=trial_seed, object=trial_object, conveyor=conveyor,
-                   landing_target=raised(scenario.landing_target), place=raised(scenario.place),
+                   landing_target=raised(landing_target), place=raised(scenario.place),
                    release_orientation=release_orientation,
                    sensors=replace(scenario.sensors, mocap=mocap), randomization=None,
                    path=None)

@@ -14,6 +14,7 @@ import math
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import landing_without_drag, UnreachableTargetError
 from dual_arm_control.core.reachability import plan_grasp, ReachabilityConfig
+from dual_arm_control.core.release import clear_of_the_box
 from dual_arm_control.core.toss_planning import (plan_release, release_candidates,
                                                  ReleasePlanningConfig)
 from dual_arm_control.description.cell import arm_model, load_cell
@@ -109,3 +110,44 @@ def test_a_target_after_the_release_or_out_of_reach_is_refused(cell):
     assert 'after the release' in too_late
     metrics = episode_metrics(scenario, log.trajectory, cell)
     assert metrics['release_position_error'] <= 0.01
+
+
+def test_a_box_thrown_across_toward_one_arm_flies_clear_of_its_pad(cell):
+    """
+    A target far to the right: the box leaves at 0.65 m/s along -y, toward the right pad.
+
+    The retracting pad must not be in its way: no pad touches the box between the release and
+    the landing (without clear_of_the_box the right pad struck it 140 ms after the release).
+    """
+    base = load_scenario('paper_toss', cell=cell)
+    # toss_to_target_random trial 199: the box 2.5 cm closer, 2.6 cm right, turned -13 deg.
+    box = replace(base.object, mass=0.9, position=np.array([0.386, -0.026, 0.32]), yaw=-0.228)
+    scenario = replace(base, task='toss_to_target', release=None, object=box, seed=761605522,
+                       landing_target=np.array([0.96, -0.284, 0.25]))
+    trajectory = run_episode(scenario, cell=cell).trajectory
+    metrics = episode_metrics(scenario, trajectory, cell)
+    assert metrics['release_velocity'][1] < -0.5
+    t = trajectory['t'] - 0.3
+    released = (t > metrics['t_release']) & (trajectory['object_position'][:, 2] > 0.3)
+    assert released.sum() > 50
+    for arm in ARMS:
+        assert not trajectory[f'{arm}_pad_contact'][released].any(), arm
+
+
+def test_a_pad_near_a_box_coming_toward_it_moves_away_faster_than_it_comes():
+    p_tool, p_box = np.array([0.8, -0.34, 0.59]), np.array([0.82, -0.20, 0.48])
+    away = (p_tool - p_box) / np.linalg.norm(p_tool - p_box)
+    v_box = np.array([0.75, -0.65, 0.0])
+    retract = np.array([-0.3, 0.0, 0.0])
+    cleared = clear_of_the_box(retract, p_tool, p_box, v_box, 0.3, 0.3)
+    assert cleared @ away == pytest.approx(v_box @ away + 0.3)
+    np.testing.assert_allclose(cleared - (cleared @ away) * away,
+                               retract - (retract @ away) * away, atol=1e-12)
+    fast = retract + 2.0 * away
+    np.testing.assert_array_equal(clear_of_the_box(fast, p_tool, p_box, v_box, 0.3, 0.3), fast)
+    receding = np.array([0.75, 0.65, 0.0])
+    np.testing.assert_array_equal(clear_of_the_box(retract, p_tool, p_box, receding, 0.3, 0.3),
+                                  retract)
+    far = p_box + 0.31 * away
+    np.testing.assert_array_equal(clear_of_the_box(retract, far, p_box, v_box, 0.3, 0.3),
+                                  retract)

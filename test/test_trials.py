@@ -85,6 +85,7 @@ def assert_same(first, second, where='scenario'):
     ('object_position', [0.05]), ('object_position', [-0.01, 0.0]), ('object_yaw', -0.1),
     ('object_yaw', 4.0), ('object_yaw', [0.1, 0.2]), ('size_scale', [1.2, 0.8]),
     ('friction', [0.0, 1.0]), ('mocap_noise', [0.0, 0.2]), ('colour', [0.0, 1.0]),
+    ('landing_target', [0.1]), ('landing_target', [-0.1, 0.1]),
 ])
 def test_bad_randomization_names_file_and_key(tmp_path, cell, key, value):
     path = write(tmp_path / 'random.yaml', toss_data(randomization={key: value}))
@@ -175,6 +176,32 @@ def test_resting_targets_follow_the_scaled_height(tmp_path, cell):
     assert 0.24 <= height <= 0.30
     assert trial.landing_target == pytest.approx([1.0, 0.1, TABLE_TOP + height / 2], abs=1e-12)
     assert trial.object.position[2] == pytest.approx(PALLET_TOP + height / 2, abs=1e-12)
+
+
+def test_landing_targets_are_drawn_within_their_region(tmp_path, cell):
+    data = toss_data(randomization={'landing_target': [0.2, 0.3], 'mass': [0.5, 1.5]})
+    data['task'] = 'toss_to_target'
+    del data['release']
+    data['landing_target'] = [0.95, 0.0]
+    base = load_scenario(write(tmp_path / 't.yaml', data), cell)
+    trials = [sample_trial(base, index, cell) for index in range(400)]
+    offsets = np.array([trial.landing_target - base.landing_target for trial in trials])
+    # 400 uniform draws come within 4 % of each end of a range (see the test above).
+    for axis, half in enumerate((0.2, 0.3)):
+        assert np.abs(offsets[:, axis]).max() <= half
+        assert offsets[:, axis].min() < -0.96 * half and offsets[:, axis].max() > 0.96 * half
+    assert np.abs(offsets[:, 2]).max() < 1e-12
+    del data['randomization']['landing_target']
+    without = load_scenario(write(tmp_path / 'u.yaml', data), cell)
+    for index in range(5):
+        assert sample_trial(without, index, cell).object.mass == trials[index].object.mass
+        assert sample_trial(without, index, cell).seed == trials[index].seed
+
+
+def test_a_landing_target_range_needs_a_landing_target(tmp_path, cell):
+    path = write(tmp_path / 'r.yaml', toss_data(randomization={'landing_target': [0.1, 0.1]}))
+    with pytest.raises(ConfigError, match='randomization.landing_target'):
+        load_scenario(path, cell)
 
 
 def test_trial_index_is_checked(cell):

@@ -6,13 +6,12 @@ A): FT compensation and contact detection, the phase machine, the coordinated mo
 impact (eqs. 1-6), the object DS of the task (eqs. 7-9, lift, place), the orientation DS, and
 release / retract motions. Time enters as dt; nothing reads a clock.
 
-halt() stops the task where it is, for good (until a reset or go-home request): used when an
-arm's controller is lost, whose arm the robot then holds in place. The phase no longer changes;
-a grasped box stays where it is, squeezed by the living arm against the held one (the carry's
-commands with a zero object twist), and otherwise both tools hold their poses at the halt.
+halt() stops the task where it is until a reset or go-home request (an arm's controller is lost,
+the robot holds that arm): the phase no longer changes, a grasped box stays squeezed by the
+living arm against the held one and its wrench QP share, otherwise the tools hold their poses.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from dual_arm_control.core.approach import (impact_directions, support_height_below,
                                             synchronised_arrival, TOSS_TASKS,
@@ -40,6 +39,7 @@ from dual_arm_control.core.orientation import (intermediate_target_orientation,
 from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, PhaseMachine,
                                           PhaseMachineOutput, Task, task_from_name, TASK_NAMES)
 from dual_arm_control.core.reachability import ReachabilityConfig
+from dual_arm_control.core.release import clear_of_the_box
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  boosted_velocity, reach_speed,
@@ -78,6 +78,10 @@ class MotionGeneratorConfig:
     release_opening_speed: float = setting(
         0.3, 'Speed at which the pads move apart along their normals at release.',
         unit='m/s', low=0, high=2.0, low_open=True)
+    release_clearance: float = setting(
+        0.3, "Within this distance of the box's centre a retracting tool moves away from a box "
+        'that comes toward it, at its closing speed plus release_opening_speed '
+        '(core.release.clear_of_the_box); 0 switches it off.', unit='m', low=0, high=2.0)
     toss_speed_time_constant: float = setting(
         0.05, "The object's desired speed rises from the impact speed to the toss speed with "
         'this time constant after contact.', unit='s', low=0, high=5.0, low_open=True)
@@ -217,6 +221,8 @@ class DualArmMotionGenerator:
             commands = self._open_hands(R_tools, frames)
         else:
             commands = self._standby(p_tools, R_tools)
+            if phase is Phase.RETRACT:
+                commands = self._clear_of_the_box(commands, p_tools, p_object, v_object)
         toss = config.task in TOSS_TASKS
         return MotionOutput(
             phase=phase_output, commands=commands, object_velocity=object_velocity,
@@ -229,15 +235,11 @@ class DualArmMotionGenerator:
         """
         Return the MotionOutput of a halted tick: the task stops where it is (module text).
 
-        A held box (CONTACT, MANIPULATE) gets the carry's commands with a zero object twist: the
-        living arm keeps the pads on the grasp and the wrench QP's squeeze against the arm the
-        robot holds, and the box comes to rest with the held arm instead of being carried away
-        from it (a point attractor back to where the halt found it pulled the pair along and
-        was worse). Otherwise every tool holds its pose at the halt.
+        A held box (CONTACT, MANIPULATE) gets the carry's commands with a zero object twist (a
+        point attractor back to where the halt found it pulled the pair along: worse); otherwise
+        every tool holds its pose at the halt.
         """
-        halt = self._halt
-        phase = self._phase_machine.phase
-        first = not halt
+        halt, phase, first = self._halt, self._phase_machine.phase, not self._halt
         if first:
             halt.update(tools=p_tools.copy(), rotations=tuple(R.copy() for R in R_tools))
         zero = np.zeros(3)
@@ -360,6 +362,18 @@ class DualArmMotionGenerator:
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, frames[arm].p_world_grasp)
         return commands
+
+    def _clear_of_the_box(self, commands, p_tools, p_object, v_object):
+        """Return retract commands that keep each pad out of the flying box's way."""
+        config = self._config
+        cleared = {}
+        for index, arm in enumerate(ARMS):
+            velocity = clear_of_the_box(commands[arm].v_world, p_tools[index], p_object,
+                                        v_object, config.release_clearance,
+                                        config.release_opening_speed)
+            cleared[arm] = replace(commands[arm], v_world=saturated_velocity(
+                velocity, config.max_linear_speed))
+        return cleared
 
     def _standby(self, p_tools, R_tools, targets=None, rotations=None):
         """Return point-attractor commands toward each arm's standby pose (or the given ones)."""
