@@ -24,7 +24,8 @@ from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.runtime.controller_step import ControllerStep
 from dual_arm_control.runtime.fri import FriCycle
 from dual_arm_control.runtime.motion_step import MotionGeneratorStep
-from dual_arm_control.runtime.node_settings import COMMAND_TIMEOUT, DS_PERIOD, FRI_PERIOD
+from dual_arm_control.runtime.node_settings import (COMMAND_TIMEOUT, CONTROLLER_TIMEOUT,
+                                                    DS_PERIOD, FRI_PERIOD)
 from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.runtime.tracker_step import TrackerStep
 from dual_arm_control.runtime.wrench_step import WrenchStep
@@ -40,6 +41,7 @@ class RunnerConfig:
     fri_period: float = FRI_PERIOD
     ds_period: float = DS_PERIOD
     command_timeout: float = COMMAND_TIMEOUT
+    controller_timeout: float = CONTROLLER_TIMEOUT
     torque_interface: str = 'full'
     start_time: float = EPISODE_START_TIME
     motion_base: object = None
@@ -49,6 +51,10 @@ class RunnerConfig:
     command_outages: tuple = ()
     """Fault injection: (arm, start, end) sim-time windows [s] in which that arm's controller
     gets no DS command (it holds once its last command is stale), e.g. a late start."""
+    controller_deaths: tuple = ()
+    """Fault injection: (arm, time [s]) an arm's controller dies at: from then on it answers
+    no cycle (the FRI hold acts) and the motion generator hears no command from it, as when the
+    lockstep graph goes on without a killed controller (lockstep_answer_timeout)."""
     landing_target_changes: tuple = ()
     """Operator input: (time [s], (x, y, z) [m]) landing targets handed to the motion generator
     at those sim times, as /dual_arm/landing_target does in the graph."""
@@ -100,7 +106,8 @@ class EpisodeRoles:
         self.tracker = TrackerStep(config.tracker)
         self.motion = MotionGeneratorStep(
             motion_config_for_scenario(scenario, cell, config.motion_base), models,
-            config.ds_period, seconds_to_ns(config.start_time))
+            config.ds_period, seconds_to_ns(config.start_time),
+            controller_timeout=config.controller_timeout)
         self.wrench = WrenchStep(config.wrench, scenario.object.mass, scenario.object.size,
                                  models)
         self.controllers = {arm: ControllerStep(models[arm], cell.arm(arm).q_home,
@@ -160,9 +167,12 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
                     roles.controllers[arm].command(tick.commands[arm])
                 roles.controllers[arm].wrench(wrenches[arm])
         for arm in ARMS:
+            if _dead(config.controller_deaths, arm, state.stamp_ns * 1e-9):
+                continue
             with timer.stage('controller'):
                 torque = roles.controllers[arm].cycle(state.joints[arm])
             fri.answer(arm, torque.stamp_ns, names[arm], torque.effort)
+            roles.motion.command_heard(arm, torque.stamp_ns)
         with timer.stage('bridge_step'):
             fri.advance()
         recorder.append(twin, fri.applied)
@@ -174,3 +184,8 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
 def _in_outage(outages, arm, time):
     """Return True if arm's commands are cut at sim time [s] by one of the outage windows."""
     return any(name == arm and start <= time < end for name, start, end in outages)
+
+
+def _dead(deaths, arm, time):
+    """Return True if arm's controller has died by sim time [s] (one of the deaths)."""
+    return any(name == arm and time >= start - 1e-12 for name, start in deaths)

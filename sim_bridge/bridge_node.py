@@ -24,8 +24,11 @@ speed commands on /belt/outgoing/speed.
 
 The trajectory log (`trajectory_log`) has one row per cycle: row 0 the initial state (zero
 torque), row k + 1 the state after cycle k with the torque applied during it; the counters are
-stored beside it. /sim/reset restarts the log (time goes back to 0). SIGINT and SIGTERM end the
-run cleanly: the log is written and the process exits 0.
+stored beside it. /sim/reset writes the log of the episode it ends, then restarts the twin with
+the noise seed `seed` (-1: the scenario's) and the log (time goes back to 0). At the run's end
+(`duration`) the bridge exits 0, or with `at_duration` 'wait' stops stepping until /sim/reset
+(consecutive episodes of equal length in one graph: the soak). SIGINT and SIGTERM end the run
+cleanly: the log is written and the process exits 0.
 """
 
 import math
@@ -43,11 +46,11 @@ from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import load_scenario
 from dual_arm_control.trajectory_log import TrajectoryRecorder
 import numpy as np
-import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sim_bridge.belt_speeds import subscribe_belt_speeds
 from sim_bridge.bridge_diagnostics import counter_values, diagnostics_message
+from sim_bridge.episode_log import save_episode_log, write_log_on_exit
 from sim_bridge.ground_truth import GroundTruthStreams
 from sim_bridge.lockstep_start import GraphReadiness
 from sim_bridge.robot_streams import RobotStreams
@@ -77,6 +80,8 @@ class SimBridge(Node):
         self.scenario = load_scenario(settings['scenario'])
         self.twin = DualArmTwin(self.scenario, fri_period=self.fri_period,
                                 torque_interface=settings['torque_interface'])
+        if settings['seed'] >= 0:
+            self.twin.reset(settings['seed'])
         self.fri = FriCycle(self.twin)
         lockstep = self.mode == 'lockstep'
         self._publish_ground_truth = settings['publish_ground_truth']
@@ -90,6 +95,7 @@ class SimBridge(Node):
         self._diagnostics_period_ns = seconds_to_ns(settings['diagnostics_period'])
         self._ground_truth_period_ns = seconds_to_ns(settings['ground_truth_period'])
         self.finished = False
+        self.paused = False
         self.late_cycles = 0
         self._cycle = None
         self._awaited_answers = set()
@@ -117,7 +123,7 @@ class SimBridge(Node):
         self.get_logger().info(
             f'sim_bridge up: mode {self.mode}, FRI period {self.fri_period * 1e3:g} ms, torque '
             f'interface {self.twin.torque_interface}, scenario '
-            f'{settings["scenario"]}, seed {self.scenario.seed}, stops at sim time '
+            f'{settings["scenario"]}, seed {self.twin.seed}, stops at sim time '
             f'{self.stop_time:g} s, ground truth {"on" if self._publish_ground_truth else "off"}')
 
     def _create_interfaces(self):
@@ -169,11 +175,13 @@ class SimBridge(Node):
                 f'{arm} torque command refused ({reason}): names {list(msg.name)}, '
                 f'{len(msg.effort)} efforts; the arm holds (refusals so far: '
                 f'{self.fri.counters[arm].refused})'))
-        if self.mode == 'lockstep' and self._started and all_answered:
+        if self.mode == 'lockstep' and self._started and all_answered and not self.paused:
             self._advance()
 
     def _on_fri_tick(self):
         """Realtime: one FRI deadline; arms without a command for the cycle hold."""
+        if self.paused:
+            return
         now = time.monotonic()
         if self._last_tick_wall is not None and \
                 now - self._last_tick_wall > self.fri_period * (1.0 + LATE_CYCLE_TOLERANCE):
@@ -214,6 +222,8 @@ class SimBridge(Node):
 
     def _on_republish_timer(self):
         """Lockstep: go on past the answer deadline, or publish the awaited state again."""
+        if self.paused:
+            return
         now = time.monotonic()
         if (self._answer_timeout > 0.0 and not self._awaited_answers
                 and now - self._state_published_wall >= self._answer_timeout):
@@ -249,12 +259,14 @@ class SimBridge(Node):
             self._recorder.append(self.twin, applied)
         self._publish_state()
         if self.twin.time >= self.stop_time - 0.5 * self.fri_period:
-            self.finished = True
+            self.paused = self.settings['at_duration'] == 'wait'
+            self.finished = not self.paused
             self._publish_diagnostics()
             bridge = self.diagnostic_values()['sim_bridge']
             self.get_logger().info(
                 f'reached sim time {self.twin.time:g} s after {self.fri.cycles} cycles (real-time '
-                f'factor {bridge["real_time_factor"]:.2f}); stopping')
+                f'factor {bridge["real_time_factor"]:.2f}); '
+                f'{"waiting for /sim/reset" if self.paused else "stopping"}')
 
     def _start_episode(self):
         """Start recording and publish the initial state (after construction and reset)."""
@@ -328,11 +340,17 @@ class SimBridge(Node):
     # -- services --------------------------------------------------------------------------------
 
     def _on_reset(self, request, response):
-        self.twin.reset()
+        written = self.write_trajectory_log()
+        seed = self.settings['seed']
+        self.twin.reset(seed if seed >= 0 else None)
         self._awaited_answers = set()
-        self._start_episode()
+        self.paused = False
+        if self._started:  # else the start, once the graph is ready, begins the episode
+            self._start_episode()
         response.success = True
-        response.message = 'twin reset to the initial state of the scenario (log restarted)'
+        response.message = (f'twin reset to the initial state of the scenario, noise seed '
+                            f'{self.twin.seed} (log restarted'
+                            + (f'; the ended episode written to {written})' if written else ')'))
         self.get_logger().info(response.message)
         return response
 
@@ -353,35 +371,16 @@ class SimBridge(Node):
 
     def write_trajectory_log(self):
         """Write the episode's ground truth and the counters to `trajectory_log` (if set)."""
-        recorder = self._recorder
-        if recorder is None:
+        if self._recorder is None:
             return None
-        recorder.counters.update(self.fri.log_counters())
-        recorder.counters.update({
-            'late_cycles': self.late_cycles,
-            'wall_time': (time.monotonic() - self._first_cycle_wall
-                          if self._first_cycle_wall else 0.0),
-            'fri_period': self.fri_period, 'seed': self.scenario.seed})
-        recorder.save(self._trajectory_log)
+        save_episode_log(self._recorder, self.fri, self.late_cycles, self._first_cycle_wall,
+                         self.twin.seed, self._trajectory_log)
         return self._trajectory_log
-
-
-def _write_log(node):
-    """Write the bridge's trajectory log on the way out; return the exit code."""
-    exit_logger = rclpy.logging.get_logger(f'{node.get_name()}.exit')
-    try:
-        path = node.write_trajectory_log()
-    except OSError as error:
-        exit_logger.error(f'cannot write the trajectory log: {error}')
-        return 1
-    if path:
-        exit_logger.info(f'trajectory log written to {path}')
-    return 0
 
 
 def main(args=None):
     """Run the bridge until the run's end (exit 0), Ctrl-C or SIGTERM."""
-    return run_node(SimBridge, 'sim_bridge', args, on_exit=_write_log)
+    return run_node(SimBridge, 'sim_bridge', args, on_exit=write_log_on_exit)
 
 
 if __name__ == '__main__':

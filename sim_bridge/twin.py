@@ -23,6 +23,7 @@ from sim_bridge.arm_collisions import ArmCollisionMonitor
 from sim_bridge.belt import ContainerDrive
 from sim_bridge.incoming_belt import build_cell_model, IncomingBeltDrive
 from sim_bridge.pad_forces import pad_wrench
+from sim_bridge.safety_hold import hold_command
 from sim_bridge.scene import PHYSICS_TIMESTEP, quat_wxyz_to_xyzw, site_pose
 from sim_bridge.twin_samples import JointSample, MocapSample, StepReport, TwinState
 
@@ -64,7 +65,6 @@ class DualArmTwin:
         self._substeps = int(round(fri_period / PHYSICS_TIMESTEP))
         self._torque_limits = {arm: self.model.actuator_ctrlrange[self.index.arms[arm].actuators,
                                                                   1].copy() for arm in ARMS}
-        self._hold_damping = {arm: self.cell.arm(arm).hold_damping for arm in ARMS}
         mocap = scenario.sensors.mocap
         self._sample_period_ticks = 1.0 / (mocap.rate_hz * PHYSICS_TIMESTEP)
         self._latency = mocap.latency
@@ -116,8 +116,9 @@ class DualArmTwin:
         """Return the (7,) joint torque limits [N m] of an arm (URDF effort limits)."""
         return self._torque_limits[self._arm(arm)].copy()
 
-    def reset(self):
-        """Return to the scenario's initial state; reseed the noise from scenario.seed."""
+    def reset(self, seed=None):
+        """Return to the initial state of the scenario; reseed the noise (seed None: its own)."""
+        self.seed = int(self.scenario.seed if seed is None else seed)
         mujoco.mj_resetData(self.model, self.data)
         for arm in ARMS:
             self.data.qpos[self.index.arms[arm].qpos] = \
@@ -136,7 +137,7 @@ class DualArmTwin:
         self._next_sample = 0
         self._next_perturbation = 0
         self._pending = deque()
-        mocap_seed, ft_seed = np.random.SeedSequence(self.scenario.seed).spawn(2)
+        mocap_seed, ft_seed = np.random.SeedSequence(self.seed).spawn(2)
         self._mocap_rng = np.random.default_rng(mocap_seed)
         self._ft_rng = np.random.default_rng(ft_seed)
         self._collisions.reset()
@@ -178,18 +179,19 @@ class DualArmTwin:
         self._collision_log.extend(collisions)
         return StepReport(clamped=clamped, applied=applied, arm_collisions=tuple(collisions))
 
-    def hold_torques(self, arm):
+    def hold_torques(self, arm, stop_position=None):
         """
         Return the (7,) command [N m] that makes an arm hold, as the robot's safety stop would.
 
-        Gravity compensation minus hold_damping (config/cell.yaml) * joint velocity; with the
-        gravity_compensated interface the robot adds the gravity itself, so only the damping
-        is commanded.
+        sim_bridge.safety_hold: gravity compensation, hold_stiffness (config/cell.yaml) toward
+        stop_position (7,) [rad] (None: no stiffness), minus hold_damping * joint velocity.
         """
-        damping = self._hold_damping[arm] * self.data.qvel[self.index.arms[self._arm(arm)].dof]
-        if self.torque_interface == 'gravity_compensated':
-            return -damping
-        return self.gravity_torques(arm) - damping
+        index = self.index.arms[self._arm(arm)]
+        description = self.cell.arm(arm)
+        return hold_command(self.gravity_torques(arm), self.data.qpos[index.qpos],
+                            self.data.qvel[index.dof], description.hold_damping,
+                            description.hold_stiffness, stop_position, self._torque_limits[arm],
+                            self.torque_interface == 'gravity_compensated')
 
     def gravity_torques(self, arm):
         """Return the (7,) joint torques [N m] that balance gravity (MuJoCo's own model)."""

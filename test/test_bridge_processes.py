@@ -72,8 +72,8 @@ def test_a_controller_past_its_deadline_gets_its_last_torque_once_then_the_hold(
     The right controller (zero torque: the arm falls) stalls for ten cycles (0.100-0.118 s);
     the bridge waits 0.8 s wall for each (far above a healthy answer's few ms, even on a loaded
     machine), then applies the arm's previous torque (zero) for the
-    first missed cycle and the robot's hold (gravity compensation and hold damping) for the
-    others; then its zero torque again.
+    first missed cycle and the robot's hold (gravity compensation, hold stiffness toward the
+    joints of the first missed cycle, hold damping) for the others; then its zero torque again.
     """
     data = run_lockstep(tmp_path, ros_domain, 'stall', 0.2,
                         {'left': 'gravity', 'right': 'zero'}, lockstep_answer_timeout=0.8,
@@ -81,16 +81,19 @@ def test_a_controller_past_its_deadline_gets_its_last_torque_once_then_the_hold(
     rows = {round(t * 1e3): row for row, t in enumerate(data['t'])}
     tau, q, dq = (data[f'right_{name}'] for name in ('tau', 'q', 'dq'))
     model = arm_model('right')
-    hold_damping = np.array(load_cell().arm('right').hold_damping)
+    description = load_cell().arm('right')
     # Row k + 1 holds the torque applied during the cycle that starts at row k.
     first_missed = rows[100]
     np.testing.assert_array_equal(tau[first_missed], np.zeros(7))
     np.testing.assert_array_equal(tau[first_missed + 1], np.zeros(7))
     assert np.abs(dq[first_missed]).max() > 0.05, 'the arm is falling'
     for row in range(first_missed + 1, rows[118] + 1):
-        hold = model.gravity_torque(q[row]) - hold_damping * dq[row]
+        hold = (model.gravity_torque(q[row]) - description.hold_damping * dq[row]
+                + description.hold_stiffness * (q[first_missed] - q[row]))
         np.testing.assert_allclose(tau[row + 1], hold, atol=1e-5)
         assert np.abs(tau[row + 1]).max() > 5.0, row
+    # The hold stops the fall: the joints slow down toward where the commands stopped.
+    assert np.abs(dq[rows[118]]).max() < 0.5 * np.abs(dq[first_missed + 1]).max()
     np.testing.assert_array_equal(tau[rows[120] + 1], np.zeros(7))
     assert int(data['right_previous_torque_repeats']) == 1
     assert int(data['right_watchdog_holds']) == 9

@@ -2,7 +2,7 @@
 
 import xml.etree.ElementTree as ElementTree
 
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.wrench_qp import WrenchQPConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.description.cell_urdf import urdf_vector

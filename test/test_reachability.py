@@ -6,7 +6,7 @@ from dual_arm_control.core.approach import rolled_impact_config
 from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
 from dual_arm_control.core.impact import clearance_limited_direction
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.reachability import (grasp_candidates, grasp_lift, grasp_shifts,
                                                 PAD_ROLLS, plan_grasp, ReachabilityConfig)
 from dual_arm_control.description.cell import arm_model, load_cell

@@ -14,7 +14,7 @@ from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.impact import clearance_limited_direction, ImpactConfig
 from dual_arm_control.core.manipulation import TossConfig
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.reachability import (grasp_shifts, plan_grasp,
                                                 ReachabilityConfig)
 from dual_arm_control.core.wrench_distribution import (grip_normal_force, qp_config_for_mass,
@@ -74,6 +74,10 @@ def test_unknown_object_type_names_file_and_key(tmp_path, cell):
         load_scenario(path, cell)
 
 
+# Joint damping while the left arm is pushed down onto the pallet [N m s/rad].
+PUSH_DAMPING = 10.0
+
+
 def test_arm_driven_into_the_pallet_counts_collisions(cell):
     """A pad pressed down onto the pallet is an arm collision; the hold run has none."""
     scenario = load_scenario('hold', cell)
@@ -84,10 +88,12 @@ def test_arm_driven_into_the_pallet_counts_collisions(cell):
     assert twin.arm_collisions == ()
     collisions = []
     while twin.time < 3.0 - 1e-9 and not collisions:
-        q = twin.joint_state('left').position
-        push = model.tool_jacobian(q)[:3].T @ np.array([0.0, 0.0, -60.0])
+        joints = twin.joint_state('left')
+        push = model.tool_jacobian(joints.position)[:3].T @ np.array([0.0, 0.0, -60.0])
         torques = {arm: twin.hold_torques(arm) for arm in twin.arms}
-        torques['left'] = torques['left'] + push
+        # Gravity compensation and light damping (not the safety hold's, which resists a push).
+        torques['left'] = (twin.gravity_torques('left') - PUSH_DAMPING * joints.velocity
+                           + push)
         collisions += twin.step(torques).arm_collisions
     assert collisions, 'the left arm pushed down for 2.5 s without touching anything'
     assert any(name.startswith('left/') for name in collisions[0].geoms)

@@ -121,7 +121,7 @@ def test_a_refused_command_holds_the_arm_for_that_cycle(fri):
     assert not fri.answer('left', 0, names, [0.0] * 6 + [math.nan])
     assert fri.refused('left') == 'non_finite'
     assert fri.answer('right', 0, joint_names('right'), [0.0] * 7)
-    hold = fri.backend.hold_torques('left')
+    hold = fri.backend.hold_torques('left', fri.backend.joint_state('left').position)
     applied = fri.advance()
     np.testing.assert_array_equal(applied['left'], hold)
     np.testing.assert_array_equal(applied['right'], np.zeros(7))
@@ -136,15 +136,24 @@ def test_a_missing_command_repeats_the_last_torque_once_then_holds(fri):
     fri.advance()
     fri.begin()
     fri.answer('left', fri.awaited_ns, joint_names('left'), list(gravity['left']))
+    assert fri.stop_position('right') is None
+    first_missed = fri.backend.joint_state('right').position
     applied = fri.advance()
     np.testing.assert_array_equal(applied['right'], gravity['right'])
     assert fri.counters['right'].previous_torque_repeats == 1
     assert fri.counters['right'].watchdog_holds == 0
+    # The robot holds the joints where the commands stopped: at the first missed cycle.
+    stopped_at = fri.stop_position('right')
+    np.testing.assert_array_equal(stopped_at, first_missed)
+    # Pushed away from there, the held arm is pulled back (stiffness), not just damped.
+    fri.backend.data.qpos[fri.backend.index.arms['right'].qpos] += 0.01
     for _ in range(3):
         fri.begin()
-        hold = fri.backend.hold_torques('right')
+        hold = fri.backend.hold_torques('right', stopped_at)
+        assert np.abs(hold - fri.backend.hold_torques('right')).max() > 1.0
         applied = fri.advance()
         np.testing.assert_array_equal(applied['right'], hold)
+        np.testing.assert_array_equal(fri.stop_position('right'), stopped_at)
     assert fri.counters['right'].watchdog_holds == 3
     assert fri.counters['right'].previous_torque_repeats == 1
     fri.begin()

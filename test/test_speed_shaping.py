@@ -4,7 +4,8 @@ from dataclasses import replace
 import math
 
 from dual_arm_control.core.exceptions import ConfigError, InputError
-from dual_arm_control.core.motion_generator import DualArmMotionGenerator, MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
+from dual_arm_control.core.motion_generator import DualArmMotionGenerator
 from dual_arm_control.core.speed_shaping import (
     boosted_coordinated_velocity, boosted_velocity, profile_speed, reach_speed,
     saturated_velocity, speed_blend_weight, SpeedErrorIntegrator, SpeedFilter, SpeedProfileConfig)

@@ -5,6 +5,7 @@ import dataclasses
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix, rotation_log
 from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.runtime.node_settings import FRI_PERIODS
 from dual_arm_control.scenario import load_scenario, Perturbation
 import mujoco
 import numpy as np
@@ -45,6 +46,29 @@ def test_hold_torques_keep_tools_still(cell, hold_scenario):
                                for arm in twin.arms))
     print(f'hold_torques: worst tool drift over 5 s = {drift:.3g} m')
     assert drift < 1e-3, f'tool moved {drift:.4f} m under the safety hold (limit 0.001 m)'
+
+
+@pytest.mark.parametrize('fri_period', FRI_PERIODS)
+def test_the_safety_hold_brings_the_arms_back_to_where_the_commands_stopped(
+        cell, hold_scenario, fri_period):
+    """A KUKA holds its position on command loss: stiffness + damping, stable at every period."""
+    twin = DualArmTwin(hold_scenario, cell, fri_period=fri_period)
+    stops = {arm: twin.joint_state(arm).position for arm in twin.arms}
+    stop_tools = tool_positions(twin)
+    for arm in twin.arms:
+        twin.data.qpos[twin.index.arms[arm].qpos] += 0.02
+    speed_after = 0.0
+    while twin.time < 1.0 - 1e-9:
+        report = twin.step({arm: twin.hold_torques(arm, stops[arm]) for arm in twin.arms})
+        assert not any(report.clamped.values())
+        if twin.time >= 0.3 - 1e-9:
+            speed_after = max(speed_after, *(np.linalg.norm(twin.tool_twist(arm)[0])
+                                             for arm in twin.arms))
+    back = max(np.linalg.norm(twin.tool_pose(arm)[0] - stop_tools[arm]) for arm in twin.arms)
+    print(f'FRI {fri_period * 1e3:g} ms: tool speed from 0.3 s on <= {speed_after:.3f} m/s, '
+          f'{back * 1e3:.2f} mm from the stop pose after 1 s')
+    assert speed_after < 0.05
+    assert back < 1e-3
 
 
 def test_pinocchio_gravity_keeps_tools_still(cell, hold_scenario):
@@ -168,6 +192,22 @@ def test_same_seed_gives_bit_identical_runs(cell):
     other_seed = DualArmTwin(dataclasses.replace(scenario, seed=scenario.seed + 1), cell)
     assert not all(np.array_equal(a, b)
                    for a, b in zip(first, run_trajectory(other_seed, 400)))
+
+
+def test_a_reset_with_a_seed_reseeds_the_sensor_noise(cell):
+    """The soak's episodes: /sim/reset with seed s gives the run of a scenario whose seed is s."""
+    scenario = load_scenario('cube_drop', cell)
+    reference = run_trajectory(DualArmTwin(dataclasses.replace(scenario, seed=77), cell), 200)
+    twin = DualArmTwin(scenario, cell)
+    own = run_trajectory(twin, 200)
+    twin.reset(seed=77)
+    assert twin.seed == 77
+    reseeded = run_trajectory(twin, 200)
+    assert all(np.array_equal(a, b) for a, b in zip(reference, reseeded))
+    assert not all(np.array_equal(a, b) for a, b in zip(own, reseeded))
+    twin.reset()
+    assert twin.seed == scenario.seed
+    assert all(np.array_equal(a, b) for a, b in zip(own, run_trajectory(twin, 200)))
 
 
 def test_state_snapshot_restores_the_run(cell, hold_scenario):

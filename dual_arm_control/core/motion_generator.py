@@ -5,109 +5,42 @@ Composes the paper's pieces into the per-arm commands of one DS tick (section II
 A): FT compensation and contact detection, the phase machine, the coordinated modulated DS with
 impact (eqs. 1-6), the object DS of the task (eqs. 7-9, lift, place), the orientation DS, and
 release / retract motions. Time enters as dt; nothing reads a clock.
+
+halt() stops the task where it is until a reset or go-home request (an arm's controller is lost,
+the robot holds that arm): the phase no longer changes, a grasped box stays squeezed by the
+living arm against the held one and its wrench QP share, otherwise the tools hold their poses.
 """
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 from dual_arm_control.core.approach import (impact_directions, support_height_below,
                                             synchronised_arrival, TOSS_TASKS,
                                             yield_to_single_contact)
 from dual_arm_control.core.arms import ARMS
-from dual_arm_control.core.contact import (ContactConfig, ContactDetector, FtBiasEstimator,
-                                           FtCompensationConfig)
-from dual_arm_control.core.cooperative import CoordinationConfig
-from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.contact import ContactDetector, FtBiasEstimator
 from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry, ImpactConfig
+from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
                                                 desired_relative_velocity, level_rotation,
-                                                lift_velocity, LiftConfig,
-                                                object_angular_velocity, object_orientation_ds,
-                                                place_velocity, PlaceConfig, release_rotation,
-                                                release_velocity, toss_geometry, toss_velocity,
-                                                TossConfig)
+                                                lift_velocity, object_angular_velocity,
+                                                object_orientation_ds, place_velocity,
+                                                release_rotation, release_velocity,
+                                                toss_geometry, toss_velocity)
 from dual_arm_control.core.motion_signals import ArmCommand, MotionOutput
 from dual_arm_control.core.moving_grab import (belt_feed_forward, decayed_belt_velocity,
-                                               filtered_belt_velocity, MovingGrabConfig)
-from dual_arm_control.core.moving_target import ConveyorTossConfig
+                                               filtered_belt_velocity)
 from dual_arm_control.core.orientation import (intermediate_target_orientation,
                                                orientation_coupling,
-                                               orientation_ds_angular_velocity,
-                                               OrientationDsConfig)
-from dual_arm_control.core.phases import (Phase, PhaseConfig, PhaseInputs, PhaseMachine,
-                                          Task, task_from_name, TASK_NAMES)
-from dual_arm_control.core.reachability import ReachabilityConfig
+                                               orientation_ds_angular_velocity)
+from dual_arm_control.core.phases import (Phase, PhaseInputs, PhaseMachine, PhaseMachineOutput,
+                                          Task)
 from dual_arm_control.core.release import clear_of_the_box
-from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
                                                  boosted_velocity, reach_speed,
                                                  saturated_velocity, SpeedErrorIntegrator,
-                                                 SpeedFilter, SpeedProfileConfig)
-from dual_arm_control.core.toss_planning import ReleasePlanningConfig
+                                                 SpeedFilter)
 from dual_arm_control.core.validation import finite_array
 import numpy as np
-
-
-@dataclass(frozen=True)
-class MotionGeneratorConfig:
-    """
-    Everything the motion generator needs besides its inputs (SI units).
-
-    standby_positions (2, 3) [m] and standby_rotations (2, 3, 3) are the tool standby poses in the
-    world, rows left, right (set by the cell, not tunable); coordination, impact, toss, lift,
-    place, speed, orientation, phases, contact, ft, reachability, release_planning, conveyor
-    and moving_grab are the component configs (see their modules).
-    """
-
-    task: object = setting(
-        Task.PICK_AND_TOSS.value, 'The task of the episode: what follows the grasp.',
-        choices=TASK_NAMES)
-    object_size: tuple = setting(
-        (0.2, 0.2, 0.2), 'Box edges along object x, y (the squeeze axis) and z.',
-        unit='m', low=0, low_open=True, size=3)
-    standby_positions: tuple = ((0.35, 0.31, 0.80), (0.35, -0.31, 0.80))
-    standby_rotations: tuple = (tuple(map(tuple, np.eye(3))), tuple(map(tuple, np.eye(3))))
-    standby_gain: float = setting(
-        3.0, 'Per-arm point attractor gain toward standby (and on retract).',
-        unit='1/s', low=0, high=100.0, low_open=True)
-    max_linear_speed: float = setting(
-        1.4, 'Every tool velocity command is capped to this.',
-        unit='m/s', low=0, high=3.0, low_open=True)
-    release_opening_speed: float = setting(
-        0.3, 'Speed at which the pads move apart along their normals at release.',
-        unit='m/s', low=0, high=2.0, low_open=True)
-    release_clearance: float = setting(
-        0.3, "Within this distance of the box's centre a retracting tool moves away from a box "
-        'that comes toward it, at its closing speed plus release_opening_speed '
-        '(core.release.clear_of_the_box); 0 switches it off.', unit='m', low=0, high=2.0)
-    toss_speed_time_constant: float = setting(
-        0.05, "The object's desired speed rises from the impact speed to the toss speed with "
-        'this time constant after contact.', unit='s', low=0, high=5.0, low_open=True)
-    coordination: CoordinationConfig = field(default_factory=CoordinationConfig)
-    impact: ImpactConfig = field(default_factory=ImpactConfig)
-    toss: TossConfig = field(default_factory=TossConfig)
-    lift: LiftConfig = field(default_factory=LiftConfig)
-    place: PlaceConfig = field(default_factory=PlaceConfig)
-    speed: SpeedProfileConfig = field(default_factory=SpeedProfileConfig)
-    orientation: OrientationDsConfig = field(default_factory=OrientationDsConfig)
-    phases: PhaseConfig = field(default_factory=PhaseConfig)
-    contact: ContactConfig = field(default_factory=ContactConfig)
-    ft: FtCompensationConfig = field(default_factory=FtCompensationConfig)
-    reachability: ReachabilityConfig = field(default_factory=ReachabilityConfig)
-    release_planning: ReleasePlanningConfig = field(default_factory=ReleasePlanningConfig)
-    conveyor: ConveyorTossConfig = field(default_factory=ConveyorTossConfig)
-    moving_grab: MovingGrabConfig = field(default_factory=MovingGrabConfig)
-
-    def __post_init__(self):
-        object.__setattr__(self, 'task', task_from_name(self.task))
-        check_settings(self)
-        positions = np.asarray(self.standby_positions, dtype=float)
-        rotations = np.asarray(self.standby_rotations, dtype=float)
-        if positions.shape != (2, 3) or rotations.shape != (2, 3, 3):
-            raise ConfigError('standby_positions must be (2, 3) and standby_rotations (2, 3, 3)')
-        for rotation in rotations:
-            if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6):
-                raise ConfigError('standby_rotations must be rotation matrices')
 
 
 class DualArmMotionGenerator:
@@ -124,6 +57,7 @@ class DualArmMotionGenerator:
         self._grasp_offset = np.zeros(3)
         self._grasp_roll = 0.0
         self._belt_velocity = np.zeros(3)
+        self._halt = None
         self.reconfigure(config)
 
     @property
@@ -150,6 +84,11 @@ class DualArmMotionGenerator:
         """Grasp the faces at offset (3,) [m] from their centres, pads rolled by roll [rad]."""
         self._grasp_offset = finite_array('grasp_offset', offset, (3,)).copy()
         self._grasp_roll = float(finite_array('grasp_roll', roll, ()))
+
+    def halt(self):
+        """Stop the task where it is from the next tick on (module text)."""
+        if self._halt is None:
+            self._halt = {}
 
     def reconfigure(self, config):
         """Apply a new configuration at the next tick; the phase and filters are kept."""
@@ -188,6 +127,10 @@ class DualArmMotionGenerator:
             contacts[arm] = self._contact[arm].update(
                 pad_forces[arm], p_tools[index], R_tools[index], frames[arm].p_world_grasp,
                 frames[arm].normal, dt)
+        if reset or go_home:
+            self._halt = None
+        if self._halt is not None:
+            return self._halted_step(p_tools, R_tools, frames, contacts, pad_forces)
         phase_output = self._phase_machine.update(PhaseInputs(
             p_world_tool_left=p_tools[0], p_world_tool_right=p_tools[1],
             p_world_object=p_object, v_world_object=v_object,
@@ -230,6 +173,31 @@ class DualArmMotionGenerator:
             grasp_frames=frames, impact_directions=directions,
             release_position=self._toss_geometry.release_position if toss else None,
             release_velocity=self._release_velocity if toss else None)
+
+    def _halted_step(self, p_tools, R_tools, frames, contacts, pad_forces):
+        """
+        Return the MotionOutput of a halted tick: the task stops where it is (module text).
+
+        A held box (CONTACT, MANIPULATE) gets the carry's commands with a zero object twist (a
+        point attractor back to where the halt found it pulled the pair along: worse); otherwise
+        every tool holds its pose at the halt.
+        """
+        halt, phase, first = self._halt, self._phase_machine.phase, not self._halt
+        if first:
+            halt.update(tools=p_tools.copy(), rotations=tuple(R.copy() for R in R_tools))
+        zero = np.zeros(3)
+        if phase in (Phase.CONTACT, Phase.MANIPULATE):
+            commands = self._carry(p_tools, R_tools, frames, zero, zero)
+        else:
+            commands = self._standby(p_tools, R_tools, halt['tools'], halt['rotations'])
+        return MotionOutput(
+            phase=PhaseMachineOutput(phase, self._phase_machine.task,
+                                     self._phase_machine.time_in_phase,
+                                     ('halted',) if first else ()),
+            commands=commands, object_velocity=zero, object_angular_velocity=zero,
+            contacts=contacts, pad_forces=pad_forces, grasp_frames=frames,
+            impact_directions={arm: frames[arm].normal for arm in ARMS},
+            release_position=None, release_velocity=None)
 
     def _object_velocity(self, p_object, v_object, phase, dt):
         """
@@ -365,15 +333,17 @@ class DualArmMotionGenerator:
                 velocity, config.max_linear_speed))
         return cleared
 
-    def _standby(self, p_tools, R_tools):
-        """Return independent point-attractor commands toward each arm's standby pose."""
+    def _standby(self, p_tools, R_tools, targets=None, rotations=None):
+        """Return point-attractor commands toward each arm's standby pose (or the given ones)."""
         config = self._config
+        targets = self._standby_positions if targets is None else targets
+        rotations = self._standby_rotations if rotations is None else rotations
         commands = {}
         for index, arm in enumerate(ARMS):
-            target = self._standby_positions[index]
+            target = targets[index]
             velocity = saturated_velocity(-config.standby_gain * (p_tools[index] - target),
                                           config.max_linear_speed)
-            R_target = self._standby_rotations[index]
+            R_target = rotations[index]
             commands[arm] = ArmCommand(
                 velocity,
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),

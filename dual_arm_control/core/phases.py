@@ -214,6 +214,11 @@ class PhaseMachine:
         """Return the Task of the current (or next, in STANDBY) episode."""
         return self._task
 
+    @property
+    def time_in_phase(self):
+        """Return the time [s] since the current phase was entered."""
+        return self._time_in_phase
+
     def select_task(self, task):
         """Choose the task; it applies at once in STANDBY, else from the next episode."""
         self._pending_task = task_from_name(task)

@@ -24,7 +24,8 @@ class ArmDescription:
 
     Fields: arm ('left' or 'right'); model (URDF name); urdf (path); base_position (3,) [m];
     base_orientation (4,) quaternion (x, y, z, w); armature (7,) [kg m^2]; damping (7,) viscous
-    [N m s/rad]; hold_damping (7,) of the safety hold [N m s/rad]; q_home (7,) [rad];
+    [N m s/rad]; hold_damping (7,) [N m s/rad] and hold_stiffness (7,) [N m/rad] of the safety
+    hold; q_home (7,) [rad];
     standby_position (3,) [m] and R_world_standby (3, 3): the tool pose q_home reaches.
     """
 
@@ -36,6 +37,7 @@ class ArmDescription:
     armature: np.ndarray
     damping: np.ndarray
     hold_damping: np.ndarray
+    hold_stiffness: np.ndarray
     q_home: np.ndarray
     standby_position: np.ndarray
     R_world_standby: np.ndarray
@@ -134,6 +136,8 @@ def _arm_description(arm, entry, path):
                                  'N m s/rad', positive=True)),
         hold_damping=_frozen(_numbers(entry, 'hold_damping', path, context, JOINTS_PER_ARM,
                                       'N m s/rad', positive=True)),
+        hold_stiffness=_frozen(_numbers(entry, 'hold_stiffness', path, context, JOINTS_PER_ARM,
+                                        'N m/rad', positive=True)),
         q_home=_frozen(_numbers(entry, 'q_home', path, context, JOINTS_PER_ARM, 'rad')),
         standby_position=_frozen(_numbers(entry, 'standby_position', path, context, 3, 'm')),
         R_world_standby=_frozen(np.column_stack((tool_x, np.cross(tool_z, tool_x), tool_z))))

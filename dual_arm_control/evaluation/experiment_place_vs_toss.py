@@ -12,7 +12,7 @@ from pathlib import Path
 import time
 
 from dual_arm_control.contract import ARMS
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import experiment_plots as plots
 from dual_arm_control.evaluation.experiment_metrics import (

@@ -17,7 +17,7 @@ import time
 
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.ballistics import centre_landing_height
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import experiment_plots as plots
 from dual_arm_control.evaluation import metrics as episode_tools

@@ -8,11 +8,13 @@ MARKER_PERIOD) markers. With `lockstep` a tick waits for both arms' joint states
 and the tracker's estimate, all stamped with it (other cycles only advance the schedule); in
 realtime each left joint state triggers a cycle with the newest of the others (take-latest).
 Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start time,
-landing target and rates. Services start an episode, send the arms home and reset. A new
-landing_target, set as a parameter or as a point on /dual_arm/landing_target (frame world),
-re-plans the toss's release state for it, or is refused with the reason. With a conveyor in the
-scenario the tracker's container estimate (/container/state) is one more tick input, and the
-toss aims at the container (runtime.motion_step).
+landing target, controller timeout and rates. The stamps of both controllers' torque commands
+tell it they are alive; one silent for controller_timeout halts the task (MotionGeneratorStep).
+Services start an episode, send the arms home and reset. A new landing_target, set as a
+parameter or as a point on /dual_arm/landing_target (frame world), re-plans the toss's release
+state for it, or is refused with the reason. With a conveyor in the scenario the tracker's
+container estimate (/container/state) is one more tick input, and the toss aims at the
+container (runtime.motion_step).
 """
 
 import sys
@@ -20,7 +22,7 @@ import sys
 from diagnostic_msgs.msg import DiagnosticStatus
 from dual_arm_control import contract
 from dual_arm_control.contract import ARMS, joint_names
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.markers import motion_markers
@@ -68,7 +70,7 @@ class DsMotionGenerator(Node):
         self.step = MotionGeneratorStep(
             parameters.config, {arm: arm_model(arm, cell) for arm in ARMS},
             settings['ds_period'], seconds_to_ns(settings['auto_start_time']),
-            refusal_logger(self.get_logger()))
+            refusal_logger(self.get_logger()), settings['controller_timeout'])
         # Lockstep: a cycle waits for all its inputs (and, on ticks, the estimate stamped with
         # it). Realtime: take-latest, the left joint state triggers the cycle.
         lockstep = settings['lockstep']
@@ -106,6 +108,11 @@ class DsMotionGenerator(Node):
                 contract.FT_WRENCH.msg_type, contract.FT_WRENCH.resolved(arm),
                 lambda msg, arm=arm: self._on_input(f'{arm}_ft', msg),
                 contract.FT_WRENCH.subscription_qos(lockstep))
+            # The controllers' torque commands: only their stamps, as a sign of life.
+            self.create_subscription(
+                contract.TORQUE_COMMAND.msg_type, contract.TORQUE_COMMAND.resolved(arm),
+                lambda msg, arm=arm: self.step.command_heard(arm, stamp_ns(msg.header.stamp)),
+                contract.TORQUE_COMMAND.subscription_qos(lockstep))
         self.create_subscription(contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
                                  lambda msg: self._on_input('object', msg),
                                  contract.OBJECT_STATE.subscription_qos(lockstep))
@@ -210,9 +217,11 @@ class DsMotionGenerator(Node):
 
     def _report(self):
         refusals = self.step.refusals
-        level = DiagnosticStatus.WARN if refusals.total else DiagnosticStatus.OK
+        level = (DiagnosticStatus.WARN if refusals.total or self.step.controllers.lost_arms
+                 else DiagnosticStatus.OK)
         values = dict(refusals.counts, phase=self.step.phase.value, refused_total=refusals.total,
-                      time_resets=self.step.time_resets, dropped_stamps=self._barrier.dropped)
+                      time_resets=self.step.time_resets, dropped_stamps=self._barrier.dropped,
+                      lost_controllers=','.join(self.step.controllers.lost_arms))
         return level, f'phase {self.step.phase.value}', values
 
 

@@ -5,7 +5,7 @@ from dataclasses import replace
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import centre_landing_height, landing_without_drag
 from dual_arm_control.core.manipulation import release_velocity, TossConfig
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.toss_planning import plan_release
 from dual_arm_control.scenario import TOSS_TASKS
 import numpy as np

@@ -2,8 +2,9 @@
 The FRI cycle of the robots' side: state out, one torque command per arm in, then a step.
 
 FriCycle drives a backend (the MuJoCo twin, or anything with its interface: time,
-joint_state(arm), ft_wrench(arm), mocap_samples(), container_mocap_samples(), hold_torques(arm),
-step(torques) returning what it clamped and applied) the way KUKA's FRI drives a robot:
+joint_state(arm), ft_wrench(arm), mocap_samples(), container_mocap_samples(),
+hold_torques(arm, stop_position), step(torques) returning what it clamped and applied) the way
+KUKA's FRI drives a robot:
 
 - begin() returns the state of the current cycle (what the robots report) and awaits one command
   per arm stamped with it;
@@ -12,7 +13,8 @@ step(torques) returning what it clamped and applied) the way KUKA's FRI drives a
   counted, and that arm holds this cycle;
 - advance() applies the commands and steps the backend. An arm without a command for the cycle
   (realtime: its deadline passed) keeps its previous commanded torque for one cycle, then holds
-  (the robot's own gravity compensation and joint damping) until a command is on time again.
+  (the robot's own hold: gravity compensation, joint stiffness toward the joint positions of
+  the first cycle without a command, joint damping) until a command is on time again.
   Torques beyond the limits are clamped by the backend (counted).
 
 The lockstep bridge and the in-process runner call advance() once every arm answered; the
@@ -109,7 +111,12 @@ class FriCycle:
         self.applied = {arm: np.zeros(len(self._names[arm])) for arm in ARMS}
         self._answers = dict.fromkeys(ARMS)
         self._repeated_previous = dict.fromkeys(ARMS, True)
+        self._stop_positions = dict.fromkeys(ARMS)
         self.awaited_ns = None
+
+    def stop_position(self, arm):
+        """Return the joint positions (7,) [rad] arm holds since its commands stopped, or None."""
+        return self._stop_positions[arm]
 
     def begin(self):
         """Return the CycleState of the backend's current time; await its commands."""
@@ -188,7 +195,9 @@ class FriCycle:
         answer = self._answers[arm]
         if isinstance(answer, TorqueSample):
             self._repeated_previous[arm] = False
+            self._stop_positions[arm] = None
             return answer.effort
+        self._note_stop_position(arm)
         if answer is None and not self._repeated_previous[arm]:
             self._repeated_previous[arm] = True
             self.counters[arm].previous_torque_repeats += 1
@@ -196,4 +205,15 @@ class FriCycle:
         self._repeated_previous[arm] = True
         if answer is None:
             self.counters[arm].watchdog_holds += 1
-        return self.backend.hold_torques(arm)
+        return self.backend.hold_torques(arm, self._stop_positions[arm])
+
+    def _note_stop_position(self, arm):
+        """
+        Keep where arm's commands stopped: the joints at its first cycle without a command.
+
+        The robot's hold pulls the arm back there (a KUKA holds its position on command loss),
+        so an arm whose controller died stays put instead of drifting under damping alone.
+        """
+        if self._stop_positions[arm] is None:
+            self._stop_positions[arm] = np.array(self.backend.joint_state(arm).position,
+                                                 dtype=float)

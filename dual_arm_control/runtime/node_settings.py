@@ -10,7 +10,7 @@ with it.
 
 from dataclasses import dataclass
 
-from dual_arm_control.core.motion_generator import MotionGeneratorConfig
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.passive_control import PassiveControllerConfig
 from dual_arm_control.core.settings import Setting
 from dual_arm_control.core.tracker import TrackerConfig
@@ -24,6 +24,8 @@ DS_PERIOD = 0.005
 """Period of the motion generator and wrench QP ticks [s] (200 Hz, the paper's rate)."""
 COMMAND_TIMEOUT = 0.05
 """Age [s, sim time] beyond which a controller's DS command or contact wrench is stale."""
+CONTROLLER_TIMEOUT = 0.01
+"""Silence [s, sim time] after which the motion generator counts an arm's controller as lost."""
 TF_PERIOD = 0.02
 """Sim time between two /tf updates of one source [s] (50 Hz: enough for viewers, light)."""
 MODES = ('lockstep', 'realtime')
@@ -82,7 +84,12 @@ NODE_TABLES = {
         Setting('duration', 0.0, 'sim time at which the run ends and the bridge exits 0; 0 = '
                 'the duration of the scenario', 's', 0.0, MAX_DURATION),
         Setting('trajectory_log', '', 'if set: .npz ground-truth trajectory written on exit '
-                '(empty = none)', read_only=True),
+                'and, for the episode it ends, by /sim/reset (empty = none)', read_only=True),
+        Setting('seed', -1, "seed of the twin's sensor noise from the start and at every "
+                "/sim/reset (read then); -1 = the scenario's", '', -1, 2**32 - 1),
+        Setting('at_duration', 'exit', 'at the end of the run (duration): exit 0, or wait (no '
+                'more cycles) until /sim/reset starts the next episode',
+                choices=('exit', 'wait'), read_only=True),
         Setting('ft_period', DS_PERIOD, 'the F/T readings go out on the first FRI cycle of each '
                 'period (TickSchedule: the DS ticks, the only cycles that use them); 0 = every '
                 'FRI cycle', 's', 0.0, 0.1, read_only=True),
@@ -132,6 +139,10 @@ NODE_TABLES = {
                 're-plans the release state for it, as a point on /dual_arm/landing_target '
                 'does, or is refused with the reason (out of reach, or after the release)',
                 'm', -MAX_WORKSPACE, MAX_WORKSPACE),
+        Setting('controller_timeout', CONTROLLER_TIMEOUT, 'sim time without a torque command '
+                'from the controller of an arm (heard before) after which it counts as lost: the '
+                'task stops where it is, a held box stays squeezed against the arm the robot '
+                'holds; 0 = never', 's', 0.0, 1.0, read_only=True),
         DS_PERIOD_SETTING, LOCKSTEP, DIAGNOSTICS_PERIOD), MotionGeneratorConfig),
     'wrench_qp': NodeTable((
         SCENARIO,

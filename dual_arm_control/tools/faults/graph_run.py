@@ -30,11 +30,13 @@ class SimProbe:
     An rclpy node in this process on ROS domain `domain`: sim time, commands, diagnostics.
 
     The sim time is the bridge's ground truth stamp (every ground_truth_period, 10 ms), not
-    /clock, which a malformed burst writes to as well.
+    /clock, which a malformed burst writes to as well: clock_ns the largest so far,
+    last_truth_ns the newest (it goes back at a /sim/reset).
     """
 
     def __init__(self, domain, name='fault_probe'):
         self.clock_ns = 0
+        self.last_truth_ns = -1
         self.clock_moved_wall = time.monotonic()
         self.last_command_ns = dict.fromkeys(contract.ARMS)
         self.diagnostics = {}
@@ -61,9 +63,10 @@ class SimProbe:
         rclpy.try_shutdown(context=self.context)
 
     def _on_sim_time(self, t_ns):
-        if t_ns > self.clock_ns:
-            self.clock_ns = t_ns
+        if t_ns != self.last_truth_ns:
             self.clock_moved_wall = time.monotonic()
+        self.last_truth_ns = t_ns
+        self.clock_ns = max(self.clock_ns, t_ns)
 
     def stalled(self):
         """Return True if the sim time, once started, has not moved for STALL_TIMEOUT [s]."""
@@ -101,7 +104,7 @@ class GraphRun:
     """A lockstep graph run in out_dir on ROS domain `domain` (use as a context manager)."""
 
     def __init__(self, scenario_file, out_dir, domain, duration, answer_timeout=0.0,
-                 record=True):
+                 record=True, bridge_parameters=None):
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.trajectory_file = self.out_dir / 'trajectory.npz'
@@ -110,6 +113,7 @@ class GraphRun:
                                     self.trajectory_file.resolve(), record)
         parameters['sim_bridge']['duration'] = duration
         parameters['sim_bridge']['lockstep_answer_timeout'] = answer_timeout
+        parameters['sim_bridge'].update(bridge_parameters or {})
         self._nodes = full_graph()
         self.launcher = Launcher(self._nodes, self.out_dir, domain, node_parameters=parameters)
         self._scenario_file = scenario_file
@@ -149,6 +153,10 @@ class GraphRun:
                               timeout)
         self.probe.spin_until(lambda: False, 0.3)
         return self.exited()
+
+    def pids(self):
+        """Return {label: process id} of the graph's nodes."""
+        return dict(zip((spec.label for spec in self._nodes), self.launcher.pids))
 
     def pid(self, label):
         """Return the process id of the node with that label (e.g. left_passive_controller)."""

@@ -161,8 +161,10 @@ def malformed_burst(kind, trial):
     return outcome
 
 
-KILL_RULE = ('its arm holds (previous torque once, then gravity + damping); tool speed < '
-             '0.05 m/s from 0.3 s on; a held box falls from <= 2 cm; bag whole')
+KILL_RULE = ('its arm holds (previous torque once, then the robot hold: gravity + stiffness '
+             'toward the joints where its commands stopped + damping) and the motion generator '
+             'stops the task; tool speed < 0.05 m/s from 0.3 s on; a held box falls from '
+             '<= 2 cm; bag whole')
 DROPOUT_RULE = ('held: no NaN torque, none beyond the limits, a held box not dropped; recovered: '
                 'the task still succeeds (the tracker predicts through the gap)')
 FAULT_KINDS = {kind.name: kind for kind in [
