@@ -5,13 +5,12 @@ The belt lies on the front table along world y at x = belt_x; the container ride
 world -y (from the left arm's side to the right arm's). Its commanded speed is the scenario's
 `speed` (and, live, the newest value on the belt's speed topic); the twin adds the disturbance.
 The container is an open box: a floor and four walls around an inner opening of
-inner_size (along world x, along the belt). read_conveyor reads the scenario's `conveyor:`
-block, conveyor_document writes it back.
+inner_size (along world x, along the belt). It is the scenario's `conveyor:` block.
 """
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
-from dual_arm_control.core.settings import check_settings, setting, settings_of
+from dual_arm_control.core.settings import check_settings, setting
 
 
 @dataclass(frozen=True)
@@ -66,30 +65,3 @@ class ConveyorConfig:
     def rim_height(self):
         """World z [m] of the top of the container's walls (the plane of its opening)."""
         return self.floor_top_height + self.wall_height
-
-
-def read_conveyor(reader, data):
-    """Return the ConveyorConfig of a scenario file's mapping data, or None without the block."""
-    entry = reader.mapping(data, 'conveyor', optional=True)
-    if entry is None:
-        return None
-    settings = {item.name: item for item in settings_of(ConveyorConfig)}
-    reader.check_keys(entry, list(settings), 'conveyor')
-    values = {}
-    for key in entry:
-        if settings[key].length is not None:
-            values[key] = tuple(reader.vector(entry, key, (settings[key].length,), 'conveyor',
-                                              settings[key].unit))
-        else:
-            values[key] = reader.number(entry, key, 'conveyor')
-    return reader.build('conveyor', ConveyorConfig, **values)
-
-
-def conveyor_document(config):
-    """Return the conveyor block of a scenario file for config (a ConveyorConfig)."""
-    document = {}
-    for item in fields(ConveyorConfig):
-        value = getattr(config, item.name)
-        document[item.name] = ([float(v) for v in value] if isinstance(value, tuple)
-                               else float(value))
-    return document

@@ -5,13 +5,12 @@ The belt runs along world y at x = belt_x, through the pallet's position, with i
 belt_top_height (above the pallet's top, so the box rests on the belt only). It carries the box
 toward world -y (from the left arm's side to the right arm's) at its commanded `speed` (and,
 live, the newest value on its speed topic); the twin adds the disturbance and starts the belt
-at start_time. read_incoming_belt reads the scenario's `incoming_belt:` block,
-incoming_belt_document writes it back.
+at start_time. It is the scenario's `incoming_belt:` block.
 """
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
-from dual_arm_control.core.settings import check_settings, setting, settings_of
+from dual_arm_control.core.settings import check_settings, setting
 
 
 @dataclass(frozen=True)
@@ -44,19 +43,3 @@ class IncomingBeltConfig:
 
     def __post_init__(self):
         check_settings(self)
-
-
-def read_incoming_belt(reader, data):
-    """Return the IncomingBeltConfig of a scenario's mapping data, or None without the block."""
-    entry = reader.mapping(data, 'incoming_belt', optional=True)
-    if entry is None:
-        return None
-    names = [item.name for item in settings_of(IncomingBeltConfig)]
-    reader.check_keys(entry, names, 'incoming_belt')
-    values = {key: reader.number(entry, key, 'incoming_belt') for key in entry}
-    return reader.build('incoming_belt', IncomingBeltConfig, **values)
-
-
-def incoming_belt_document(config):
-    """Return the incoming_belt block of a scenario file for config (an IncomingBeltConfig)."""
-    return {item.name: float(getattr(config, item.name)) for item in fields(IncomingBeltConfig)}

@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 
 from dual_arm_control.catalogue import load_catalogue
-from dual_arm_control.conveyor import conveyor_document, ConveyorConfig, read_conveyor
+from dual_arm_control.conveyor import ConveyorConfig
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.impact import ImpactConfig
@@ -24,12 +24,11 @@ from dual_arm_control.core.robot_model import ArmModel, JOINTS_PER_ARM
 from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.core.validation import check_range, frozen_vector
 from dual_arm_control.description.cell import load_cell
-from dual_arm_control.incoming_belt import (incoming_belt_document, IncomingBeltConfig,
-                                            read_incoming_belt)
+from dual_arm_control.incoming_belt import IncomingBeltConfig
 from dual_arm_control.randomization import (Randomization, randomization_document,
                                             read_randomization)
 from dual_arm_control.resources import config_path, load_yaml, require
-from dual_arm_control.scenario_reader import ScenarioReader
+from dual_arm_control.scenario_reader import ScenarioReader, settings_document
 from dual_arm_control.sensor_models import MocapConfig, read_sensor_config, SensorConfig
 import numpy as np
 
@@ -337,8 +336,9 @@ def load_scenario(path, cell=None, catalogue_path=None):
         release_orientation=(reader.vector(data, 'release_orientation', (3,), '', 'deg')
                              if 'release_orientation' in data else None),
         perturbations=tuple(sorted(perturbations, key=lambda item: item.time)),
-        sensors=read_sensor_config(reader, data), conveyor=read_conveyor(reader, data),
-        incoming_belt=read_incoming_belt(reader, data),
+        sensors=read_sensor_config(reader, data),
+        conveyor=reader.settings_block(data, 'conveyor', ConveyorConfig),
+        incoming_belt=reader.settings_block(data, 'incoming_belt', IncomingBeltConfig),
         randomization=read_randomization(reader, data, catalogue_path),
         path=path)
 
@@ -385,9 +385,9 @@ def scenario_document(scenario):
         'ft': {'force_noise': float(ft.force_noise), 'torque_noise': float(ft.torque_noise),
                'force_bias': numbers(ft.force_bias), 'torque_bias': numbers(ft.torque_bias)}}
     if scenario.conveyor is not None:
-        document['conveyor'] = conveyor_document(scenario.conveyor)
+        document['conveyor'] = settings_document(scenario.conveyor)
     if scenario.incoming_belt is not None:
-        document['incoming_belt'] = incoming_belt_document(scenario.incoming_belt)
+        document['incoming_belt'] = settings_document(scenario.incoming_belt)
     if scenario.randomization is not None:
         document['randomization'] = randomization_document(scenario.randomization)
     return document

@@ -2,13 +2,25 @@
 Typed reading of one YAML configuration file: every error names the file and the dotted key.
 
 Used by the scenario loader (dual_arm_control.scenario) and the randomization block
-(dual_arm_control.randomization).
+(dual_arm_control.randomization). A block that is one settings dataclass (the belts) is read by
+ScenarioReader.settings_block and written back by settings_document.
 """
 
 from dataclasses import fields
 
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.settings import settings_of
 from dual_arm_control.resources import require
+
+
+def settings_document(config):
+    """Return a settings dataclass as a file block: every field a float or a list of floats."""
+    document = {}
+    for item in fields(config):
+        value = getattr(config, item.name)
+        document[item.name] = ([float(v) for v in value] if isinstance(value, tuple)
+                               else float(value))
+    return document
 
 
 class ScenarioReader:
@@ -62,6 +74,28 @@ class ScenarioReader:
             raise self.error(dotted, f'must be a list of {" or ".join(map(str, sizes))} '
                                      f'numbers [{unit}], got {value!r}')
         return [float(v) for v in value]
+
+    def settings_block(self, parent, key, factory):
+        """
+        Return the settings dataclass factory read from the optional block key, or None.
+
+        The block's keys are the factory's settings (core.settings.setting), each a number or,
+        for a vector setting, a list of its length; the factory checks the ranges.
+        """
+        entry = self.mapping(parent, key, optional=True)
+        if entry is None:
+            return None
+        settings = {item.name: item for item in settings_of(factory)}
+        self.check_keys(entry, list(settings), key)
+        values = {}
+        for name in entry:
+            length = settings[name].length
+            if length is not None:
+                values[name] = tuple(self.vector(entry, name, (length,), key,
+                                                 settings[name].unit))
+            else:
+                values[name] = self.number(entry, name, key)
+        return self.build(key, factory, **values)
 
     def build(self, context, factory, *args, **kwargs):
         """Call factory; name the offending field as a dotted key under context on error."""
