@@ -278,7 +278,7 @@ def test_a_late_arm_does_not_let_the_other_push_the_box(cell):
 
 
 def test_failure_modes_count_each_trials_first_reason():
-    from dual_arm_control.evaluation.report_sections import failure_modes
+    from dual_arm_control.evaluation.report_format import failure_modes
     from dual_arm_control.evaluation.trial_summary import failure_reason
     refused = {'contact_time_gap': None, 'max_tool_drift_left': 0.0,
                'max_tool_drift_right': 0.002, 'arm_collision_count': 0}

@@ -12,9 +12,9 @@ import os
 from pathlib import Path
 
 from dual_arm_control.evaluation.paper_results import EXPERIMENTS, RESULTS_FILE
-from dual_arm_control.evaluation.report_conveyor import conveyor_section, load_conveyor
-from dual_arm_control.evaluation.report_conveyor_grab import (conveyor_grab_section,
-                                                              load_conveyor_grab)
+from dual_arm_control.evaluation.report_conveyor import (CONVEYOR_FOLDER, conveyor_section,
+                                                         load_batch)
+from dual_arm_control.evaluation.report_conveyor_grab import conveyor_grab_section, GRAB_FOLDER
 from dual_arm_control.evaluation.report_format import MISSING, number, table
 from dual_arm_control.evaluation.report_sections import (CATALOGUE_FOLDERS,
                                                          catalogue_section, fast_toss_section,
@@ -42,8 +42,8 @@ def load_results(results_dir):
         path.relative_to(results_dir).as_posix() for folder in ('robustness',
                                                                 'robustness/displaced')
         for path in sorted((results_dir / folder).glob('*.png'))]
-    loaded['conveyor'] = load_conveyor(results_dir, _read)
-    loaded['conveyor_grab'] = load_conveyor_grab(results_dir, _read)
+    loaded['conveyor'] = load_batch(results_dir, CONVEYOR_FOLDER, _read)
+    loaded['conveyor_grab'] = load_batch(results_dir, GRAB_FOLDER, _read)
     return loaded
 
 

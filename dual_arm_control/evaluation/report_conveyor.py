@@ -9,17 +9,17 @@ docs/results/conveyor_toss`, and the graph run's metrics in RESULTS/conveyor_tos
 
 from pathlib import Path
 
-from dual_arm_control.evaluation.report_format import image_links, MISSING, number, table
-from dual_arm_control.evaluation.report_sections import failure_modes
+from dual_arm_control.evaluation.report_format import (failure_mode_sentence, image_links, number,
+                                                       statistics_table)
 
 CONVEYOR_FOLDER = 'conveyor_toss'
 CONVEYOR_METRICS = ('landing_error_in_container', 'contact_time_gap', 'max_slip',
                     'impact_speed_left', 'impact_speed_right', 'cycle_time')
 
 
-def load_conveyor(results_dir, read):
-    """Return (summary or None, graph metrics or None, plot paths) of the conveyor batch."""
-    folder = Path(results_dir) / CONVEYOR_FOLDER
+def load_batch(results_dir, name, read):
+    """Return (summary or None, graph metrics or None, plot paths) of the batch folder name."""
+    folder = Path(results_dir) / name
     plots = [path.relative_to(results_dir).as_posix() for path in sorted(folder.glob('*.png'))]
     return read(folder / 'summary.json'), read(folder / 'graph' / 'metrics.json'), plots
 
@@ -37,11 +37,6 @@ def conveyor_section(results, link_root):
     out = ['## 6. Toss into a moving container (issue 15)', '']
     if summary is None:
         return out + [f'_Not run: `{CONVEYOR_FOLDER}/summary.json` is missing._', '']
-    metrics = summary.get('metrics', {})
-    rows = [(key, *(number(metrics[key].get(stat), 4) for stat in ('median', 'p95', 'max')),
-             metrics[key].get('count', MISSING))
-            for key in CONVEYOR_METRICS if key in metrics]
-    modes = failure_modes(summary.get('failures', []))
     out += ['`dual_arm_eval --scenario conveyor_toss --trials 100 --runner inprocess --jobs 1 '
             '--out docs/results/conveyor_toss`; the graph run: `dual_arm_bringup --scenario '
             'config/scenarios/conveyor_toss.yaml`.', '',
@@ -51,13 +46,12 @@ def conveyor_section(results, link_root):
             f'{summary.get("seed")}: success rate '
             f'{number(summary.get("success_rate"), 1, 100.0, "%")}, box in the container '
             f'{number(landed_share(summary), 1, 100.0, "%")}.', '',
-            table(('metric', 'median', 'p95', 'max', 'count'), rows), '',
+            statistics_table(summary.get('metrics', {}), CONVEYOR_METRICS,
+                             ('median', 'p95', 'max')), '',
             'landing_error_in_container: horizontal distance of the box centre from the '
             "container centre when the box's bottom comes down to the rim [m]; cycle_time "
             'includes the wait at standby for the container [s].', '',
-            'Failure modes (first reason of each failed trial): '
-            + ('none' if not modes else '; '.join(f'{mode}: {count}'
-                                                  for mode, count in modes)) + '.', '']
+            failure_mode_sentence(summary.get('failures', [])), '']
     if graph is not None:
         out += ['Node graph (`dual_arm_bringup`, lockstep), nominal scenario: success '
                 f'{graph.get("success")}, landed in the container '

@@ -7,22 +7,13 @@ docs/results/conveyor_grab`, and the graph run's metrics in RESULTS/conveyor_gra
 (`dual_arm_bringup --scenario config/scenarios/conveyor_grab.yaml`).
 """
 
-from pathlib import Path
-
-from dual_arm_control.evaluation.report_format import image_links, MISSING, number, table
-from dual_arm_control.evaluation.report_sections import failure_modes
+from dual_arm_control.evaluation.report_format import (failure_mode_sentence, image_links, number,
+                                                       statistics_table)
 
 GRAB_FOLDER = 'conveyor_grab'
 GRAB_METRICS = ('contact_time_gap', 'impact_speed_relative_left', 'impact_speed_relative_right',
                 'belt_drag', 'max_slip', 'landing_error', 'release_velocity_error',
                 'cycle_time')
-
-
-def load_conveyor_grab(results_dir, read):
-    """Return (summary or None, graph metrics or None, plot paths) of the grab batch."""
-    folder = Path(results_dir) / GRAB_FOLDER
-    plots = [path.relative_to(results_dir).as_posix() for path in sorted(folder.glob('*.png'))]
-    return read(folder / 'summary.json'), read(folder / 'graph' / 'metrics.json'), plots
 
 
 def conveyor_grab_section(results, link_root):
@@ -31,12 +22,6 @@ def conveyor_grab_section(results, link_root):
     out = ['### 6b. Grab from the moving incoming belt (issue 15)', '']
     if summary is None:
         return out + [f'_Not run: `{GRAB_FOLDER}/summary.json` is missing._', '']
-    metrics = summary.get('metrics', {})
-    rows = [(key, *(number(metrics[key].get(stat), 4) for stat in ('median', 'p95', 'min',
-                                                                   'max')),
-             metrics[key].get('count', MISSING))
-            for key in GRAB_METRICS if key in metrics]
-    modes = failure_modes(summary.get('failures', []))
     out += ['`dual_arm_eval --scenario conveyor_grab --trials 100 --runner inprocess --jobs 1 '
             '--out docs/results/conveyor_grab`; the graph run: `dual_arm_bringup --scenario '
             'config/scenarios/conveyor_grab.yaml`.', '',
@@ -47,14 +32,13 @@ def conveyor_grab_section(results, link_root):
             f'{number(summary.get("success_rate"), 1, 100.0, "%")} (grasp: contact gap <= '
             '10 ms, both relative impact speeds within 15 % of 0.5 m/s, belt drag <= 1 cm; '
             'toss: the paper_toss criteria).', '',
-            table(('metric', 'median', 'p95', 'min', 'max', 'count'), rows), '',
+            statistics_table(summary.get('metrics', {}), GRAB_METRICS,
+                             ('median', 'p95', 'min', 'max')), '',
             'impact_speed_relative_*: tool velocity before its contact minus the box velocity '
             "before the first contact, along the impact direction [m/s]; belt_drag: the box's "
             'motion along the belt relative to the belt surface between the first contact and '
             'both pads in contact [m]; cycle_time includes the wait at standby for the box [s].',
-            '', 'Failure modes (first reason of each failed trial): '
-            + ('none' if not modes else '; '.join(f'{mode}: {count}'
-                                                  for mode, count in modes)) + '.', '']
+            '', failure_mode_sentence(summary.get('failures', [])), '']
     if graph is not None:
         out += ['Node graph (`dual_arm_bringup`, lockstep), nominal scenario: success '
                 f'{graph.get("success")}, contact gap '

@@ -64,3 +64,33 @@ def mean_std(entry, digits=2, scale=1.0):
     if entry is None or entry['mean'] is None:
         return MISSING
     return f'{entry["mean"] * scale:.{digits}f} ± {entry["std"] * scale:.{digits}f}'
+
+
+def statistics_table(metrics, keys, stats):
+    """Return the table of a dual_arm_eval summary's metrics: one row per key it has, by stats."""
+    rows = [(key, *(number(metrics[key].get(stat), 4) for stat in stats),
+             metrics[key].get('count', MISSING)) for key in keys if key in metrics]
+    return table(('metric', *stats, 'count'), rows)
+
+
+def failure_modes(failures):
+    """Return [(mode, count)], most frequent first: a failure's mode is its first reason."""
+    counts = {}
+    for item in failures:
+        first = str(item.get('reason', '')).split(';')[0].split(' (')[0].strip()
+        words = first.split()
+        if ' > ' in first:
+            mode = f'{words[0]} over its limit'
+        else:
+            mode = ' '.join(word for word in words
+                            if not any(character.isdigit() for character in word))
+        counts[mode] = counts.get(mode, 0) + 1
+    return sorted(counts.items(), key=lambda entry: (-entry[1], entry[0]))
+
+
+def failure_mode_sentence(failures):
+    """Return the report's sentence listing the failure modes of a summary's failures."""
+    modes = failure_modes(failures)
+    return ('Failure modes (first reason of each failed trial): '
+            + ('none' if not modes else '; '.join(f'{mode}: {count}'
+                                                  for mode, count in modes)) + '.')

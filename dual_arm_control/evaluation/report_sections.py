@@ -7,9 +7,10 @@ plots and returns its Markdown lines; a missing results file gives a 'Not run' n
 
 from dual_arm_control.evaluation.experiment_metrics import reduction_percent
 from dual_arm_control.evaluation.paper_results import PAPER_RESULTS
-from dual_arm_control.evaluation.report_format import (image_links, mean_std, MISSING, not_run,
-                                                       number, paper, plot_links, table,
-                                                       value_range)
+from dual_arm_control.evaluation.report_format import (failure_mode_sentence, image_links,
+                                                       mean_std, MISSING, not_run, number,
+                                                       paper, plot_links, statistics_table,
+                                                       table, value_range)
 
 
 def _at_speed(place_vs_toss, speed=1.0):
@@ -307,21 +308,6 @@ CATALOGUE_METRICS = ('contact_time_gap', 'max_slip', 'impact_speed_left', 'impac
                      'landing_error', 'place_position_error', 'box_tilt_at_place')
 
 
-def failure_modes(failures):
-    """Return [(mode, count)], most frequent first: a failure's mode is its first reason."""
-    counts = {}
-    for item in failures:
-        first = str(item.get('reason', '')).split(';')[0].split(' (')[0].strip()
-        words = first.split()
-        if ' > ' in first:
-            mode = f'{words[0]} over its limit'
-        else:
-            mode = ' '.join(word for word in words
-                            if not any(character.isdigit() for character in word))
-        counts[mode] = counts.get(mode, 0) + 1
-    return sorted(counts.items(), key=lambda entry: (-entry[1], entry[0]))
-
-
 def catalogue_section(results, link_root):
     """Experiment 4b (dual_arm_eval): catalogue boxes at random poses; a turned box; targets."""
     out = ['## 4b. Robustness over the object catalogue, a turned box and random landing targets '
@@ -331,19 +317,13 @@ def catalogue_section(results, link_root):
         if summary is None:
             out += [f'_Not run: `{folder}/summary.json` is missing._', '']
             continue
-        metrics = summary.get('metrics', {})
-        rows = [(key, *(number(metrics[key].get(stat), 4) for stat in ('median', 'p95', 'max')),
-                 metrics[key].get('count', MISSING))
-                for key in CATALOGUE_METRICS if key in metrics]
-        modes = failure_modes(summary.get('failures', []))
         out += [f'### `{summary.get("scenario")}`', '',
                 f'{summary.get("trials")} trials, runner {summary.get("runner")}, seed '
                 f'{summary.get("seed")}: success rate '
                 f'{number(summary.get("success_rate"), 1, 100.0, "%")}.', '',
-                table(('metric', 'median', 'p95', 'max', 'count'), rows), '',
-                'Failure modes (first reason of each failed trial): '
-                + ('none' if not modes else '; '.join(f'{mode}: {count}'
-                                                      for mode, count in modes)) + '.', '']
+                statistics_table(summary.get('metrics', {}), CATALOGUE_METRICS,
+                                 ('median', 'p95', 'max')), '',
+                failure_mode_sentence(summary.get('failures', [])), '']
         out += image_links(plots, link_root) + ['']
     return out
 
