@@ -10,7 +10,7 @@ box does to it, and MuJoCo sees its true velocity in every contact (friction dra
 in it along). A mocap body was not used because MuJoCo treats a mocap body as fixed in its
 contacts: a box on its floor would slide instead of being carried.
 
-The belt speed is the commanded speed (scenario, or live from set_speed) times
+The belt speed (BeltSpeed) is the commanded speed (scenario, or live from BeltSpeed.command) times
 1 + disturbance_amplitude sin(2 pi t / disturbance_period + phase), with the phase drawn from
 the twin's seed; zero before container_start_time. The container moves toward world -y.
 """
@@ -88,6 +88,36 @@ def disturbed_speed(commanded, t, start_time, amplitude, period, phase):
     return commanded * (1.0 + amplitude * math.sin(2.0 * math.pi * t / period + phase))
 
 
+class BeltSpeed:
+    """
+    A belt's speed [m/s] toward world -y: the commanded speed times a sinusoidal disturbance.
+
+    The command is the scenario's speed until a live one arrives (set); the disturbance's phase
+    is drawn by the drive that owns the belt (reset); the belt stands still before start_time.
+    """
+
+    def __init__(self, config, start_time):
+        self._config = config
+        self._start_time = start_time
+        self.phase = 0.0
+        self.commanded = float(config.speed)
+
+    def reset(self, phase):
+        """Back to the scenario's commanded speed, with the disturbance phase [rad]."""
+        self.phase = phase
+        self.commanded = float(self._config.speed)
+
+    def command(self, speed):
+        """Command the belt speed [m/s] from now on."""
+        self.commanded = float(speed)
+
+    def at(self, t):
+        """Return the belt speed [m/s] at sim time t, disturbance included."""
+        config = self._config
+        return disturbed_speed(self.commanded, t, self._start_time, config.disturbance_amplitude,
+                               config.disturbance_period, self.phase)
+
+
 class ContainerDrive:
     """
     Moves the container along the belt and samples it by motion capture.
@@ -103,31 +133,20 @@ class ContainerDrive:
         self._dof = int(model.jnt_dofadr[joint])
         self._seed_sequence = np.random.SeedSequence(seed).spawn(3)[2]
         self._mocap = mocap
+        self.belt = BeltSpeed(config, config.container_start_time)
 
     def reset(self, data):
         """Container at its start in data, belt at the scenario's speed, noise reseeded."""
         self._rng = np.random.default_rng(self._seed_sequence)
-        self.phase = float(self._rng.uniform(0.0, 2.0 * math.pi))
-        self.commanded_speed = float(self.config.speed)
+        self.belt.reset(float(self._rng.uniform(0.0, 2.0 * math.pi)))
         self.position = float(self.config.container_start)
         self.velocity = 0.0
         data.qpos[self._qpos] = self.position
         data.qvel[self._dof] = self.velocity
 
-    def set_speed(self, speed):
-        """Command the belt speed [m/s] (toward world -y) from now on."""
-        self.commanded_speed = float(speed)
-
-    def speed(self, t):
-        """Return the belt speed [m/s] at sim time t, disturbance included."""
-        config = self.config
-        return disturbed_speed(self.commanded_speed, t, config.container_start_time,
-                               config.disturbance_amplitude, config.disturbance_period,
-                               self.phase)
-
     def drive(self, data, t, dt):
         """Write the container's state at t into data; advance it by dt for the next step."""
-        self.velocity = -self.speed(t)
+        self.velocity = -self.belt.at(t)
         data.qpos[self._qpos] = self.position
         data.qvel[self._dof] = self.velocity
         self.position += self.velocity * dt
@@ -146,10 +165,10 @@ class ContainerDrive:
 
     def state(self):
         """Return the drive's state for ContainerDrive.set_state."""
-        return (self.position, self.velocity, self.commanded_speed,
+        return (self.position, self.velocity, self.belt.commanded,
                 self._rng.bit_generator.state)
 
     def set_state(self, state):
         """Restore a state taken by state()."""
-        self.position, self.velocity, self.commanded_speed, rng_state = state
+        self.position, self.velocity, self.belt.commanded, rng_state = state
         self._rng.bit_generator.state = rng_state

@@ -9,7 +9,7 @@ position back to zero, so the slab stays where it is while MuJoCo sees its surfa
 every contact: friction carries a box resting on it, as a real belt's surface does, and a box
 held still slides on it.
 
-The belt speed is the commanded speed (scenario, or live from set_speed) times
+The belt speed (belt.BeltSpeed) is the commanded speed (scenario, or live) times
 1 + disturbance_amplitude sin(2 pi t / disturbance_period + phase), with the phase drawn from
 the twin's seed; zero before start_time. Positive speeds carry the box toward world -y.
 """
@@ -18,7 +18,7 @@ import math
 
 import mujoco
 import numpy as np
-from sim_bridge.belt import add_conveyor, BELT_THICKNESS, disturbed_speed
+from sim_bridge.belt import add_conveyor, BELT_THICKNESS, BeltSpeed
 from sim_bridge.scene import (build_spec, CONTACT_SOLIMP, CONTACT_SOLREF, OBJECT_BODY,
                               scene_index)
 
@@ -80,30 +80,19 @@ class IncomingBeltDrive:
         self._qpos = int(model.jnt_qposadr[joint])
         self._dof = int(model.jnt_dofadr[joint])
         self._seed_sequence = np.random.SeedSequence(seed).spawn(4)[3]
+        self.belt = BeltSpeed(config, config.start_time)
 
     def reset(self, data):
         """Belt at rest in data, at the scenario's commanded speed, phase redrawn."""
         rng = np.random.default_rng(self._seed_sequence)
-        self.phase = float(rng.uniform(0.0, 2.0 * math.pi))
-        self.commanded_speed = float(self.config.speed)
+        self.belt.reset(float(rng.uniform(0.0, 2.0 * math.pi)))
         self.velocity = 0.0
         data.qpos[self._qpos] = 0.0
         data.qvel[self._dof] = 0.0
 
-    def set_speed(self, speed):
-        """Command the belt speed [m/s] (toward world -y) from now on."""
-        self.commanded_speed = float(speed)
-
-    def speed(self, t):
-        """Return the belt speed [m/s] at sim time t, disturbance included."""
-        config = self.config
-        return disturbed_speed(self.commanded_speed, t, config.start_time,
-                               config.disturbance_amplitude, config.disturbance_period,
-                               self.phase)
-
     def drive(self, data, t):
         """Write the belt surface's state at t into data: in place, moving at the belt speed."""
-        self.velocity = -self.speed(t)
+        self.velocity = -self.belt.at(t)
         data.qpos[self._qpos] = 0.0
         data.qvel[self._dof] = self.velocity
 
@@ -113,8 +102,8 @@ class IncomingBeltDrive:
 
     def state(self):
         """Return the drive's state for IncomingBeltDrive.set_state."""
-        return (self.velocity, self.commanded_speed)
+        return (self.velocity, self.belt.commanded)
 
     def set_state(self, state):
         """Restore a state taken by state()."""
-        self.velocity, self.commanded_speed = state
+        self.velocity, self.belt.commanded = state

@@ -99,13 +99,13 @@ class DualArmTwin:
         """Command the outgoing belt's speed [m/s] (toward world -y); InputError without one."""
         if self.container is None:
             raise InputError('this scenario has no conveyor')
-        self.container.set_speed(float(finite_array('belt speed', [speed], (1,))[0]))
+        self.container.belt.command(float(finite_array('belt speed', [speed], (1,))[0]))
 
     def set_incoming_belt_speed(self, speed):
         """Command the incoming belt's speed [m/s] (toward world -y); InputError without one."""
         if self.incoming_belt is None:
             raise InputError('this scenario has no incoming belt')
-        self.incoming_belt.set_speed(float(finite_array('belt speed', [speed], (1,))[0]))
+        self.incoming_belt.belt.command(float(finite_array('belt speed', [speed], (1,))[0]))
 
     @property
     def arm_collisions(self):

@@ -217,14 +217,14 @@ def test_belt_speed_topic_commands_the_conveyor(ros_domain):
             bridge.scenario.conveyor.container_start)
         publisher = probe.node.create_publisher(Float64, contract.OUTGOING_BELT_SPEED.name,
                                                 contract.OUTGOING_BELT_SPEED.qos)
-        assert bridge.twin.container.commanded_speed == pytest.approx(0.25)
+        assert bridge.twin.container.belt.commanded == pytest.approx(0.25)
         publisher.publish(Float64(data=0.12))
         assert probe.spin_until(
-            lambda: bridge.twin.container.commanded_speed == pytest.approx(0.12), SPIN_TIMEOUT)
+            lambda: bridge.twin.container.belt.commanded == pytest.approx(0.12), SPIN_TIMEOUT)
         publisher.publish(Float64(data=math.nan))
         publisher.publish(Float64(data=0.3))
         assert probe.spin_until(
-            lambda: bridge.twin.container.commanded_speed == pytest.approx(0.3), SPIN_TIMEOUT)
+            lambda: bridge.twin.container.belt.commanded == pytest.approx(0.3), SPIN_TIMEOUT)
     finally:
         probe.executor.remove_node(bridge)
         bridge.destroy_node()
@@ -240,15 +240,15 @@ def test_incoming_belt_speed_topic_commands_the_incoming_belt(ros_domain):
     try:
         belt = bridge.twin.incoming_belt
         assert bridge.twin.container is None
-        assert belt.commanded_speed == pytest.approx(0.2)
+        assert belt.belt.commanded == pytest.approx(0.2)
         publisher = probe.node.create_publisher(Float64, contract.INCOMING_BELT_SPEED.name,
                                                 contract.INCOMING_BELT_SPEED.qos)
         publisher.publish(Float64(data=0.12))
-        assert probe.spin_until(lambda: belt.commanded_speed == pytest.approx(0.12),
+        assert probe.spin_until(lambda: belt.belt.commanded == pytest.approx(0.12),
                                 SPIN_TIMEOUT)
         publisher.publish(Float64(data=math.inf))
         publisher.publish(Float64(data=0.28))
-        assert probe.spin_until(lambda: belt.commanded_speed == pytest.approx(0.28),
+        assert probe.spin_until(lambda: belt.belt.commanded == pytest.approx(0.28),
                                 SPIN_TIMEOUT)
     finally:
         probe.executor.remove_node(bridge)

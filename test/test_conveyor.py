@@ -156,16 +156,16 @@ def test_belt_drive_moves_the_container_at_the_disturbed_speed():
     expected, tick = conveyor.container_start, 0
     while twin.time < start + 0.5 - 1e-9:
         for _ in range(2):
-            expected -= disturbed_speed(conveyor.speed, tick * 1e-3, start,
-                                        conveyor.disturbance_amplitude,
-                                        conveyor.disturbance_period, twin.container.phase) * 1e-3
+            expected -= disturbed_speed(
+                conveyor.speed, tick * 1e-3, start, conveyor.disturbance_amplitude,
+                conveyor.disturbance_period, twin.container.belt.phase) * 1e-3
             tick += 1
         twin.step(hold)
         hold = {arm: twin.hold_torques(arm) for arm in twin.arms}
     position, velocity = twin.container.pose(twin.data)
     assert position[1] == pytest.approx(expected, abs=1e-9)
     assert position[1] < conveyor.container_start - 0.5 * 0.8 * conveyor.speed
-    assert velocity[1] == pytest.approx(-twin.container.speed(twin.time - 1e-3), abs=1e-9)
+    assert velocity[1] == pytest.approx(-twin.container.belt.at(twin.time - 1e-3), abs=1e-9)
     twin.set_belt_speed(0.0)
     twin.step(hold)
     assert twin.container.pose(twin.data)[1][1] == 0.0

@@ -141,7 +141,7 @@ def test_incoming_belt_carries_the_box_at_its_speed():
     assert -0.13 < position[1] - start_y < -0.07
     assert position[2] == pytest.approx(scenario.object.position[2], abs=0.002)
     assert position[0] == pytest.approx(scenario.object.position[0], abs=0.002)
-    assert belt.velocity == pytest.approx(-belt.speed(twin.time), abs=0.01)
+    assert belt.velocity == pytest.approx(-belt.belt.at(twin.time), abs=0.01)
     assert twin.object_twist()[0] == pytest.approx(belt.surface_velocity(), abs=0.01)
     # The slab itself stays in place: only its surface moves.
     joint = twin.model.joint('incoming_belt')
