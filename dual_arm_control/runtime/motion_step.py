@@ -297,13 +297,9 @@ class MotionGeneratorStep:
         reason = grab_wait_reason(predicted, config.moving_grab)
         if reason or not config.reachability.enabled:
             return reason
-        self.grasp_plan = plan_grasp(
-            self._models, {arm: joints[arm].position for arm in ARMS}, predicted, rotation,
-            np.asarray(config.object_size), config.reachability,
-            config.impact.support_clearance)
-        if not self.grasp_plan.reachable:
-            return f'grasp at the predicted contact out of reach: {self.grasp_plan.reason}'
-        self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
+        plan = self._adopt_grasp_plan(joints, predicted, rotation)
+        if not plan.reachable:
+            return f'grasp at the predicted contact out of reach: {plan.reason}'
         return ''
 
     def _plan_grasp(self, joints, estimate, stamp_ns):
@@ -312,16 +308,23 @@ class MotionGeneratorStep:
         if not config.reachability.enabled:
             return ''
         position, rotation, _, _ = estimate_at(estimate, stamp_ns)
+        plan = self._adopt_grasp_plan(joints, position, rotation)
+        if not plan.reachable:
+            reason = f'grasp out of reach: {plan.reason}'
+            self.refusals.refuse('unreachable_grasp', reason)
+            return reason
+        return ''
+
+    def _adopt_grasp_plan(self, joints, position, rotation):
+        """Plan the grasp of the box at (position, rotation); a reachable one is the grasp."""
+        config = self._generator.config
         self.grasp_plan = plan_grasp(
             self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
             np.asarray(config.object_size), config.reachability,
             config.impact.support_clearance)
-        if not self.grasp_plan.reachable:
-            reason = f'grasp out of reach: {self.grasp_plan.reason}'
-            self.refusals.refuse('unreachable_grasp', reason)
-            return reason
-        self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
-        return ''
+        if self.grasp_plan.reachable:
+            self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
+        return self.grasp_plan
 
 
 def _object_measurement(estimate, stamp_ns, arms):
