@@ -7,6 +7,7 @@ hold_stiffness, hold_damping). Without a stop position the hold is gravity + dam
 brake that lets the arm drift). The hold never commands a torque beyond the drives' limits.
 """
 
+from dual_arm_control.core.passive_control import hold_torque
 import numpy as np
 
 
@@ -21,7 +22,7 @@ def hold_command(gravity, position, velocity, damping, stiffness, stop_position,
     the gravity term is left out (and the limits apply to the sum). The command is clipped so
     the drives never see a torque beyond their limits, as the robot's own hold would.
     """
-    torque = gravity - np.asarray(damping) * velocity
+    torque = hold_torque(gravity, velocity, damping)
     if stop_position is not None:
         torque = torque + np.asarray(stiffness) * (np.asarray(stop_position) - position)
     torque = np.clip(torque, -limits, limits)
