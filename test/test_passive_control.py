@@ -67,7 +67,8 @@ def test_controller_uses_the_tool_point_twist(arm):
     # The damping must act on the velocity of the tool point itself (the sign of w x d
     # matters), which finite differences of tool_pose give independently.
     _, model, q_home = arm
-    config = PassiveControllerConfig(orientation_stiffness=0.0, null_space_stiffness=(0.0,) * 7)
+    config = PassiveControllerConfig(free_orientation_stiffness=0.0,
+                                     null_space_stiffness=(0.0,) * 7)
     controller = PassiveController(model, q_home, config)
     dq = np.array([0.3, -0.2, 0.4, 0.5, -0.6, 0.7, -0.8])
     step = 1e-7
@@ -101,7 +102,8 @@ def test_tracking_a_linear_ds_converges_to_the_target(arm):
 
 def test_zero_desired_field_never_increases_energy(arm):
     # Passivity: with v_d = w_d = 0, gravity compensated by the same model, the stored energy
-    # (kinetic, armature included, plus the orientation spring K_R theta^2 / 2) must not grow.
+    # (kinetic, armature included, plus the orientation spring K_R theta^2 / 2, free-motion
+    # K_R as no contact wrench is applied) must not grow.
     # The posture spring is off: projected through N it is not a potential force.
     _, model, q_home = arm
     config = PassiveControllerConfig(null_space_stiffness=(0.0,) * 7)
@@ -119,11 +121,38 @@ def test_zero_desired_field_never_increases_energy(arm):
         R_world_tool = model.tool_pose(q)[1]
         angle = np.linalg.norm(rotation_log(R_world_desired @ R_world_tool.T))
         energies.append(0.5 * dq @ model.mass_matrix(q) @ dq
-                        + 0.5 * config.orientation_stiffness * angle ** 2)
+                        + 0.5 * config.free_orientation_stiffness * angle ** 2)
         assert not command.saturated
     increments = np.diff(energies)
     assert increments.max() <= 1e-7   # J per 1 ms step: integration tolerance
     assert energies[-1] < 0.01 * energies[0]
+
+
+def test_orientation_gains_are_the_free_ones_until_the_first_contact_wrench(arm):
+    """Free gains in the reach; the contact gains from the first contact wrench on."""
+    _, model, q_home = arm
+    config = PassiveControllerConfig()
+    assert config.free_orientation_stiffness > config.orientation_stiffness
+    controller = PassiveController(model, q_home, config)
+    dq = np.array([0.1, -0.2, 0.1, 0.3, -0.2, 0.4, -0.3])
+    w_tool = model.tool_jacobian(q_home)[3:] @ dq
+    R_world_tool = model.tool_pose(q_home)[1]
+    turn = np.array([0.05, -0.02, 0.03])
+    R_world_desired = rotation_exp(turn) @ R_world_tool
+    contact_wrench = np.array([3.0, -2.0, 30.0, 0.2, -0.1, 0.05])
+    free = (config.free_orientation_stiffness, config.free_angular_damping)
+    touched = (config.orientation_stiffness, config.angular_damping)
+    for wrench, (stiffness, damping) in ((None, free), (np.zeros(6), free),
+                                         (contact_wrench, touched), (None, touched)):
+        command = controller.torque_command(q_home, dq, np.zeros(3), np.zeros(3),
+                                            R_world_desired, wrench)
+        applied = np.zeros(3) if wrench is None else wrench[3:]
+        np.testing.assert_allclose(command.task_wrench[3:] - applied,
+                                   stiffness * turn - damping * w_tool, atol=1e-9)
+    controller.start_episode()
+    command = controller.torque_command(q_home, dq, np.zeros(3), np.zeros(3), R_world_desired)
+    np.testing.assert_allclose(command.task_wrench[3:], free[0] * turn - free[1] * w_tool,
+                               atol=1e-9)
 
 
 def test_contact_wrench_is_pushed_with_its_own_sign(arm):

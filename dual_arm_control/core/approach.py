@@ -9,6 +9,7 @@ surface the box rests on), and the yield of a pad that touches its face before t
 from dataclasses import replace
 
 from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.elbow_reach import elbow_clear_direction
 from dual_arm_control.core.grasp import rolled_pad_half_extents
 from dual_arm_control.core.impact import (clearance_limited_direction, impact_direction,
                                           max_impact_tilt)
@@ -96,19 +97,27 @@ def rolled_impact_config(config, pad_roll):
     return replace(config.impact, pad_half_height=half_height)
 
 
-def impact_directions(config, frames, object_velocity, support_height=None, pad_roll=0.0):
+def impact_directions(config, frames, object_velocity, support_height=None, pad_roll=0.0,
+                      elbow_reaches=None):
     """
     Return {arm: (3,)} unit impact directions: each face normal tilted toward the motion.
 
-    support_height [m]: height of the surface the box rests on; when given, a direction's rise
-    is limited so the run-in of the pad (rolled by pad_roll [rad] about the face normal)
-    clears it (clearance_limited_direction).
+    elbow_reaches {arm: ElbowReach}: when given, a direction whose run-in the arm could only
+    follow with its elbow folded past its limit turns away from the shoulder
+    (elbow_clear_direction). support_height [m]: height of the surface the box rests on; when
+    given, a direction's rise is limited so the run-in of the pad (rolled by pad_roll [rad]
+    about the face normal) clears it (clearance_limited_direction).
     """
     max_tilt = max_impact_tilt(config.impact)
     impact = rolled_impact_config(config, pad_roll)
     directions = {}
     for arm in ARMS:
         direction = impact_direction(frames[arm].normal, object_velocity, max_tilt)
+        if elbow_reaches is not None:
+            direction = elbow_clear_direction(
+                direction, frames[arm].normal, max_tilt, elbow_reaches[arm],
+                frames[arm].p_world_grasp, frames[arm].R_world_grasp,
+                impact.region.transitory_distance, impact.elbow_clearance)
         if support_height is not None:
             direction = clearance_limited_direction(
                 direction, frames[arm].p_world_grasp[2] - support_height, impact)

@@ -46,6 +46,11 @@ class ImpactConfig:
     support_clearance: float = setting(
         0.02, "The pad's lowest point stays this far above the surface the box rests on while it "
         'runs in along e1 (see clearance_limited_direction).', unit='m', low=0, high=0.5)
+    elbow_clearance: float = setting(
+        0.02, 'An impact direction whose run-in would draw the wrist closer to the shoulder than '
+        "this beyond the elbow's joint limit (or than the grasp pose itself does) turns, within "
+        'max_tilt_deg of the face normal, away from the shoulder until it does not '
+        '(core.elbow_reach.elbow_clear_direction).', unit='m', low=0, high=0.5)
     synchronisation_distance: float = setting(
         0.1, 'Within this distance of its grasp point the arm behind speeds up to arrive with '
         "the other (core.approach.synchronised_arrival); 0 disables it. Default 0.1: the box's "

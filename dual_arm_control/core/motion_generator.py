@@ -56,6 +56,7 @@ class DualArmMotionGenerator:
         self._release_object_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
         self._grasp_roll = 0.0
+        self._elbow_reaches = None
         self._belt_velocity = np.zeros(3)
         self._halt = None
         self.reconfigure(config)
@@ -84,6 +85,10 @@ class DualArmMotionGenerator:
         """Grasp the faces at offset (3,) [m] from their centres, pads rolled by roll [rad]."""
         self._grasp_offset = finite_array('grasp_offset', offset, (3,)).copy()
         self._grasp_roll = float(finite_array('grasp_roll', roll, ()))
+
+    def set_elbow_reaches(self, elbow_reaches):
+        """Keep every run-in within the arms' elbow reach ({arm: ElbowReach}; None: do not)."""
+        self._elbow_reaches = elbow_reaches
 
     def halt(self):
         """Stop the task where it is from the next tick on (module text)."""
@@ -151,7 +156,8 @@ class DualArmMotionGenerator:
         object_velocity = self._object_velocity(p_object, v_object, phase, dt)
         omega_object = self._object_angular_velocity(R_object, phase)
         directions = impact_directions(config, frames, object_velocity,
-                                       support_height_below(config, p_object), self._grasp_roll)
+                                       support_height_below(config, p_object), self._grasp_roll,
+                                       self._elbow_reaches)
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
             commands = yield_to_single_contact(commands, contacts, frames)

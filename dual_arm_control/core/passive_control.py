@@ -64,9 +64,22 @@ class PassiveControllerConfig:
         0.01, 'Below about this desired speed D blends continuously to lambda1 I.',
         unit='m/s', low=0, high=10.0, low_open=True)
     angular_damping: float = setting(
-        6.0, 'd_w, damping on w - w_d (reference 6).', unit='N m s/rad', low=0, high=1e3)
+        6.0, 'd_w, damping on w - w_d from the first contact wrench of an episode on '
+        '(reference 6).',
+        unit='N m s/rad', low=0, high=1e3)
     orientation_stiffness: float = setting(
-        10.0, 'K_R, stiffness toward the desired orientation.', unit='N m/rad', low=0, high=1e4)
+        10.0, 'K_R, stiffness toward the desired orientation from the first contact wrench of '
+        'an episode on.', unit='N m/rad', low=0, high=1e4)
+    free_angular_damping: float = setting(
+        10.0, 'd_w until the first contact wrench of an episode (the reach).',
+        unit='N m s/rad', low=0, high=1e3)
+    free_orientation_stiffness: float = setting(
+        80.0, 'K_R until the first contact wrench of an episode (the reach). In the folded '
+        "postures of the reach the arm's inertia couples the tool's linear and angular motion; "
+        'with 10 the pads met yawed faces 5-19 deg off flush, one corner first '
+        '(catalogue_random). Not after the grasp: stiff while the hands open, it cost the toss '
+        '3 % of its release speed.',
+        unit='N m/rad', low=0, high=1e4)
     null_space_stiffness: tuple = setting(
         (10.0,) * JOINTS, 'K_n, posture stiffness per joint.',
         unit='N m/rad', low=0, high=1e4, size=JOINTS)
@@ -192,16 +205,18 @@ def orientation_error_vector(R_error):
     return np.array([factor * (r21 - r12), factor * (r02 - r20), factor * (r10 - r01)])
 
 
-def orientation_moment(w_world_tool, w_world_desired, R_world_tool, R_world_desired, config):
+def orientation_moment(w_world_tool, w_world_desired, R_world_tool, R_world_desired, stiffness,
+                       damping):
     """
     Return M (3,) [N m]: damping on w - w_d plus a stiffness toward R_world_desired.
 
-    M = -d_w (w - w_d) + K_R log(R_d R^T); the spring is the gradient of K_R theta^2 / 2 with
-    theta the angle between the two orientations, so it stores and returns energy only.
+    M = -d_w (w - w_d) + K_R log(R_d R^T) with K_R = stiffness [N m/rad], d_w = damping
+    [N m s/rad]; the spring is the gradient of K_R theta^2 / 2 with theta the angle between the
+    two orientations, so it stores and returns energy only.
     """
     error = orientation_error_vector(R_world_desired @ R_world_tool.T)
-    return (config.angular_damping * (np.asarray(w_world_desired) - np.asarray(w_world_tool))
-            + config.orientation_stiffness * error)
+    return (damping * (np.asarray(w_world_desired) - np.asarray(w_world_tool))
+            + stiffness * error)
 
 
 def hold_torque(gravity_torque, dq, hold_damping):
@@ -252,6 +267,11 @@ class PassiveController:
         self.q_null = None
         self.set_null_space_posture(q_null)
         self.last_gravity_torque = np.zeros(JOINTS)
+        self.touched = False
+
+    def start_episode(self):
+        """Return to the free-motion orientation gains until the next contact wrench."""
+        self.touched = False
 
     def set_null_space_posture(self, q_null):
         """Set the posture [rad] (7,) the null-space spring pulls toward."""
@@ -322,10 +342,16 @@ class PassiveController:
         _, R_world_tool = self.model.tool_pose(q)
         jacobian = self.model.tool_jacobian(q)
         twist = jacobian @ dq
+        config = self.config
+        self.touched = self.touched or bool(contact_wrench.any())
+        if self.touched:
+            stiffness, damping = config.orientation_stiffness, config.angular_damping
+        else:
+            stiffness, damping = config.free_orientation_stiffness, config.free_angular_damping
         task_wrench = np.concatenate((
-            passive_ds_force(twist[:3], v_world_desired, self.config),
+            passive_ds_force(twist[:3], v_world_desired, config),
             orientation_moment(twist[3:], w_world_desired, R_world_tool, R_world_desired,
-                               self.config)))
+                               stiffness, damping)))
         task_wrench += contact_wrench
         control = (jacobian.T @ task_wrench + self.null_space_torque(jacobian, q, dq)
                    + joint_speed_brake_torque(dq, self._velocity_limits, self._armature,

@@ -8,6 +8,7 @@ a name says otherwise; Jacobians and twists are world-aligned at the named point
 """
 
 from dual_arm_control.core.arms import JOINTS_PER_ARM
+from dual_arm_control.core.elbow_reach import ElbowReach
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.validation import check_vector, finite_array
 import numpy as np
@@ -16,8 +17,11 @@ import pinocchio as pin
 TOOL_FRAME = 'tool'
 FLANGE_FRAME = 'flange'
 SENSOR_FRAME = 'ft_sensor'
-# pinocchio joint index of A4, whose axis passes through the elbow (0 is the universe).
+# pinocchio joint indices (0 is the universe) of A2 (its axis origin is the shoulder), A4 (the
+# elbow) and A6 (the wrist).
+SHOULDER_JOINT = 2
 ELBOW_JOINT = 4
+WRIST_JOINT = 6
 
 
 class ArmModel:
@@ -147,6 +151,24 @@ class ArmModel:
         pin.computeJointJacobians(self.model, self.data, self._q(q))
         return pin.getJointJacobian(self.model, self.data, ELBOW_JOINT,
                                     pin.LOCAL_WORLD_ALIGNED)[:3].copy()
+
+    def elbow_reach(self):
+        """
+        Return the ElbowReach of the arm.
+
+        Its shoulder, the wrist in the tool frame, and the shoulder-wrist distance with the
+        elbow (A4) folded to its joint limit.
+        """
+        q = np.zeros(JOINTS_PER_ARM)
+        p_world_tool, R_world_tool = self.tool_pose(q)
+        shoulder = self.data.oMi[SHOULDER_JOINT].translation.copy()
+        wrist_in_tool = R_world_tool.T @ (self.data.oMi[WRIST_JOINT].translation - p_world_tool)
+        lower, upper = self.position_limits
+        q[ELBOW_JOINT - 1] = min(abs(lower[ELBOW_JOINT - 1]), abs(upper[ELBOW_JOINT - 1]))
+        pin.forwardKinematics(self.model, self.data, q)
+        folded = float(np.linalg.norm(self.data.oMi[WRIST_JOINT].translation
+                                      - self.data.oMi[SHOULDER_JOINT].translation))
+        return ElbowReach(shoulder, wrist_in_tool, folded)
 
     def tool_twist(self, q, dq):
         """Return (v_world (3,) [m/s], w_world (3,) [rad/s]) of the tool point."""

@@ -62,7 +62,8 @@ def _contact_directions(scenario, cell):
     Return ({arm: inward face normal}, {arm: desired impact direction}) at the initial pose.
 
     The impact directions are the motion generator's own (the normal tilted toward the task's
-    object motion), computed with the scenario's configuration.
+    object motion, turned to keep the run-in within the elbow's reach), computed with the
+    scenario's configuration.
     """
     yaw = scenario.object.yaw
     R_world_object = np.array([[np.cos(yaw), -np.sin(yaw), 0.0],
@@ -73,7 +74,9 @@ def _contact_directions(scenario, cell):
     motion = object_motion_direction(config, scenario.object.position)
     return ({arm: frames[arm].normal for arm in ARMS},
             impact_directions(config, frames, motion,
-                              support_height_below(config, scenario.object.position)))
+                              support_height_below(config, scenario.object.position),
+                              elbow_reaches={arm: arm_model(arm, cell).elbow_reach()
+                                             for arm in ARMS}))
 
 
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):

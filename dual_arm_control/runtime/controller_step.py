@@ -88,6 +88,7 @@ class ControllerStep:
         if self._last_cycle_ns is not None and stamp_ns < self._last_cycle_ns:
             self._schedule.reset()
             self._controller.set_null_space_posture(self._q_null)
+            self._controller.start_episode()
             self.counters['schedule_restarts'] += 1
         self._last_cycle_ns = stamp_ns
         self.counters['cycles'] += 1

@@ -96,6 +96,7 @@ class MotionGeneratorStep:
 
     def _start_over(self, config):
         self._generator = DualArmMotionGenerator(config)
+        self._generator.set_elbow_reaches({arm: self._models[arm].elbow_reach() for arm in ARMS})
         self._schedule = TickSchedule(self._ds_period)
         self._started = self._auto_start_ns == 0
         self._requests = dict.fromkeys(COMMANDS, False)

@@ -1,0 +1,109 @@
+"""
+The elbow's reach: a run-in that the arm can follow without folding its elbow past its limit.
+
+The elbow joint (A4) sets the distance between the shoulder (the A2 axis origin) and the wrist
+(the A6 axis origin): the more it folds, the closer they come, down to min_wrist_distance at its
+joint limit (0.40 m for the iiwa 7, 0.41 m for the iiwa 14 at 120 deg). The wrist sits at a
+fixed point of the tool frame (0.241 m behind the pad on the flange axis), so a tool pose puts
+it at a known place, and a pad that runs in toward its face along e1 drags the wrist along -e1
+behind it (eq. 5's run-in, the last rho of the reach). In the dual-arm cell the boxes sit close
+to the shoulders and the paper's tilt of e1 toward the object's motion (forward, +x) makes the
+run-in start with the wrist closer to the shoulder than the elbow can fold: the arm then runs
+along its elbow limit, the passive controller trades orientation for position, and the pads
+meet their faces several degrees off flush, one corner first.
+"""
+
+import math
+from typing import NamedTuple
+
+from dual_arm_control.core.geometry import skew, slerp_rotation, unit
+import numpy as np
+
+# Fractions of the turn from the preferred direction toward the clearest one tried, in order.
+_TURN_STEPS = 8
+
+
+class ElbowReach(NamedTuple):
+    """Where an arm's wrist may go: outside a sphere about its shoulder (world frame, m)."""
+
+    shoulder: np.ndarray
+    """(3,) the A2 axis origin, fixed in the world while A1 turns."""
+    wrist_in_tool: np.ndarray
+    """(3,) the A6 axis origin in the tool frame."""
+    min_wrist_distance: float
+    """Shoulder-wrist distance with the elbow folded to its joint limit."""
+
+
+def wrist_offset(reach, p_world_tool, R_world_tool):
+    """Return the wrist's position relative to the shoulder (3,) [m] for a tool pose."""
+    return (np.asarray(p_world_tool, dtype=float)
+            + np.asarray(R_world_tool, dtype=float) @ reach.wrist_in_tool - reach.shoulder)
+
+
+def run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, direction, run_in):
+    """
+    Return the least elbow margin [m] over a run-in: min over s in [0, run_in] of |w(s)| - r.
+
+    The pad holds the grasp orientation R and runs the last run_in [m] to p_world_grasp along
+    direction (3,), unit, so the wrist goes through w(s) = w_d - s e1 relative to the shoulder;
+    r is min_wrist_distance. |w(s)| is least at s = clip(w_d . e1, 0, run_in).
+    """
+    wrist = wrist_offset(reach, p_world_grasp, R_world_grasp)
+    direction = np.asarray(direction, dtype=float)
+    nearest = min(max(float(wrist @ direction), 0.0), run_in)
+    return float(np.linalg.norm(wrist - nearest * direction)) - reach.min_wrist_distance
+
+
+def clearest_direction(reach, p_world_grasp, R_world_grasp, normal, max_tilt):
+    """
+    Return the direction (3,) of the cone whose run-in keeps the wrist farthest out.
+
+    The cone holds the directions within max_tilt [rad] of the inward normal; the answer is the
+    normal tilted fully away from the wrist's offset w_d, which minimises w_d . e1 over the cone
+    and with it how far the run-in draws the wrist in.
+    """
+    normal = unit(normal, 'normal')
+    wrist = wrist_offset(reach, p_world_grasp, R_world_grasp)
+    tangential = wrist - (wrist @ normal) * normal
+    length = float(np.linalg.norm(tangential))
+    if length < 1e-9:
+        return normal
+    return math.cos(max_tilt) * normal - math.sin(max_tilt) / length * tangential
+
+
+def elbow_clear_direction(direction, normal, max_tilt, reach, p_world_grasp, R_world_grasp,
+                          run_in, clearance):
+    """
+    Return the impact direction e1 (3,): direction itself if its run-in clears the elbow limit.
+
+    Clearing means the run-in's least elbow margin (run_in_elbow_margin) is at least
+    clearance [m], or as much as the grasp pose itself has if that is less. Otherwise e1 turns
+    from direction toward clearest_direction (within max_tilt [rad] of the inward normal, the
+    friction cone the impact direction keeps) by the smallest of eight equal steps that
+    clears, or all the way.
+    """
+    direction = unit(direction, 'direction')
+    grasp_margin = run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, direction, 0.0)
+    required = min(clearance, grasp_margin)
+    if run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, direction,
+                           run_in) >= required - 1e-9:
+        return direction
+    clearest = clearest_direction(reach, p_world_grasp, R_world_grasp, normal, max_tilt)
+    turn = _rotation_between(direction, clearest)
+    for step in range(1, _TURN_STEPS + 1):
+        candidate = slerp_rotation(np.eye(3), turn, step / _TURN_STEPS) @ direction
+        if run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, candidate,
+                               run_in) >= required - 1e-9:
+            return candidate
+    return clearest
+
+
+def _rotation_between(start, end):
+    """Return the shortest rotation (3, 3) taking unit vector start to unit vector end."""
+    axis = np.cross(start, end)
+    sine = float(np.linalg.norm(axis))
+    cosine = float(start @ end)
+    if sine < 1e-12:
+        return np.eye(3)
+    cross = skew(axis / sine)
+    return np.eye(3) + sine * cross + (1.0 - cosine) * cross @ cross
