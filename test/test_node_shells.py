@@ -524,7 +524,8 @@ def test_sensor_subscriptions_are_best_effort_and_commands_keep_one(harness_fact
         assert qos[name].reliability == ReliabilityPolicy.RELIABLE and qos[name].depth == 1
     for topic in (contract.FT_WRENCH, contract.MOCAP_OBJECT_POSE):
         assert topic.subscription_qos(lockstep).reliability == ReliabilityPolicy.BEST_EFFORT
-    assert contract.TORQUE_COMMAND.subscription_qos(lockstep).depth == 1
+    assert contract.TORQUE_COMMAND.subscription_qos(lockstep).depth == (
+        contract.TORQUE_COMMAND_SUBSCRIPTION_DEPTH if lockstep else 1)
 
 
 # -- wrench_qp -----------------------------------------------------------------------------------
