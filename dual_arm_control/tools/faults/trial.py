@@ -20,11 +20,14 @@ from dual_arm_control.evaluation.trials import write_trial_scenario
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.scenario import load_scenario
-from dual_arm_control.tools.faults.outcome import fill_from_trajectory
+from dual_arm_control.tools.faults.outcome import fill_from_trajectory, TrialOutcome
 from dual_arm_control.trajectory_log import load_trajectory
 from dual_arm_control.trial_sampling import sample_trial
+import numpy as np
 
 TEMPLATE = 'paper_toss_random'
+# Largest |tau| difference [N m] of an episode that is still the fault-free one.
+TORQUE_TOLERANCE = 1e-9
 
 
 @lru_cache(maxsize=1)
@@ -123,3 +126,29 @@ def measure_graph_episode(outcome, trajectory_file, trial, dead_arms=()):
     if not dead_arms:
         outcome.recovered = bool(episode_metrics(trial.scenario, data, cell())['success'])
     return outcome
+
+
+def skipped(kind, trial, why):
+    """Return the outcome of a trial that is not run, and why."""
+    return TrialOutcome(kind, trial.index, trial.seed, note=f'skipped: {why}')
+
+
+def torque_deviation(trajectory_file, trial):
+    """
+    Return the largest |tau| difference [N m] of a graph run from the trial's fault-free episode.
+
+    The fault-free episode runs in-process (the lockstep graph's episode to 1e-9); inf if the
+    logs differ in length or the graph run left none.
+    """
+    try:
+        data = load_trajectory(trajectory_file)
+    except DualArmControlError:
+        return np.inf
+    nominal = run_inprocess(trial.scenario)[1]
+    deviation = 0.0
+    for arm in ARMS:
+        graph, fault_free = np.asarray(data[f'{arm}_tau'], float), nominal[f'{arm}_tau']
+        if graph.shape != fault_free.shape:
+            return np.inf
+        deviation = max(deviation, float(np.abs(graph - fault_free).max(initial=0.0)))
+    return deviation
