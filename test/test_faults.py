@@ -71,15 +71,16 @@ def test_a_malformed_burst_on_every_topic_is_refused_and_nothing_exits(tmp_path,
     outcome = FAULT_KINDS['malformed_burst'].run(trial)
     print(outcome.as_dict())
     counts = json.loads(outcome.note)
-    huge_torque_commands = sum(1 for message in messages if message.defect == 'huge'
-                               and message.topic is TORQUE_COMMAND)
+    torque_commands = sum(1 for message in messages if message.topic is TORQUE_COMMAND)
     assert outcome.node_exits == 0
     assert outcome.nan_torques == 0
     assert outcome.worst_torque_ratio <= 1.0 + 1e-9
-    assert outcome.torque_clamps <= huge_torque_commands
+    assert outcome.torque_clamps == 0, 'an unsigned torque command was applied'
     assert outcome.bag_status == 'complete'
     assert {'object_tracker', 'left/passive_controller', 'right/passive_controller', 'wrench_qp',
             'ds_motion_generator'} <= set(counts), counts
+    assert sum(counts[f'sim_bridge: {arm} arm'].get('refused_foreign', 0)
+               for arm in ARMS) == torque_commands, counts
     assert outcome.refused > 0.2 * MALFORMED_PER_TRIAL
     assert outcome.held
 
