@@ -9,10 +9,12 @@ and checks the physical outcome on the twin's ground truth.
 """
 
 import json
+import os
 import re
 
 from dual_arm_control.contract import ARMS, TORQUE_COMMAND
 from dual_arm_control.runtime.node_settings import FRI_PERIOD
+from dual_arm_control.tools.faults.graph_run import SimProbe
 from dual_arm_control.tools.faults.kinds import (FAULT_KINDS, fri_hold_problem,
                                                  MALFORMED_PER_TRIAL)
 from dual_arm_control.tools.faults.malformed import DEFECTS, draw_malformed, SUBSCRIBED
@@ -140,3 +142,17 @@ def test_a_controller_stalled_for_100_ms_leaves_the_episode_as_it_was(tmp_path, 
     assert_fault_free_episode(trial)
     assert outcome.node_exits == 0 and 'stalled' not in outcome.note
     assert outcome.held and outcome.recovered == trial.nominal['success']
+
+
+def test_a_closed_probe_leaves_no_threads_or_descriptors(ros_domain):
+    """A campaign process opens one probe per trial; leaked ones hung the graphs after ~27."""
+    def resources():
+        return len(os.listdir('/proc/self/task')), len(os.listdir('/proc/self/fd'))
+
+    SimProbe(int(ros_domain)).close()
+    before = resources()
+    for _ in range(3):
+        probe = SimProbe(int(ros_domain))
+        probe.spin_until(lambda: False, 0.1)
+        probe.close()
+    assert resources() == before
