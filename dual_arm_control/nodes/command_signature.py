@@ -7,12 +7,12 @@ key per launch, in the environment (COMMAND_KEY_VARIABLE; a parameter would be r
 the parameter services): a controller puts an HMAC-SHA256 of its command (stamp, joint names,
 efforts) in header.frame_id, and a bridge with the key takes only commands signed with it. A
 node without the key in its environment neither signs nor checks (a bridge or controller
-started alone, as the tests do).
+started alone, as the tests do). The signature is compared with ==: a process that could time
+that comparison runs as the same user and could read the key from the nodes' environment.
 """
 
 from functools import lru_cache
 import hashlib
-import hmac
 import os
 import secrets
 import struct
@@ -35,12 +35,17 @@ def command_key():
 
 
 def command_signature(key, stamp_ns, names, efforts):
-    """Return the signature (hex) of a torque command: its stamp [ns], joint names, efforts."""
+    """
+    Return the signature (hex) of a torque command: its stamp [ns], joint names, efforts.
+
+    HMAC-SHA256 of the command with key: PBKDF2 with one iteration is one HMAC (of the payload
+    followed by the block counter).
+    """
     payload = (struct.pack('<q', int(stamp_ns)) + '\n'.join(names).encode()
                + np.asarray(efforts, dtype=float).tobytes())
-    return hmac.new(key, payload, hashlib.sha256).hexdigest()
+    return hashlib.pbkdf2_hmac('sha256', key, payload, 1).hex()
 
 
 def signed(key, stamp_ns, names, efforts, signature):
     """Return True if signature is the command's signature with key."""
-    return hmac.compare_digest(command_signature(key, stamp_ns, names, efforts), signature)
+    return command_signature(key, stamp_ns, names, efforts) == signature
