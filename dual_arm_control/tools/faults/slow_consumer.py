@@ -13,8 +13,7 @@ import time
 
 from dual_arm_control.tools.faults.graph_run import GraphRun
 from dual_arm_control.tools.faults.outcome import TrialOutcome
-from dual_arm_control.tools.faults.trial import (measure_graph_episode, skipped,
-                                                 torque_deviation, TORQUE_TOLERANCE)
+from dual_arm_control.tools.faults.trial import judge_same_episode, skipped
 
 STALL_TIME = 0.1
 STALLED_NODES = ('object_tracker', 'ds_motion_generator', 'wrench_qp', 'left_passive_controller',
@@ -52,15 +51,6 @@ def slow_consumer(kind, trial):
         exits = run.wait_for_end(GRAPH_TIMEOUT)
         stalled_at = None if 'sim_bridge' in exits else run.probe.clock_ns * 1e-9
         outcome.refused = sum(sum(c.values()) for c in run.probe.refusal_counts().values())
-    outcome.node_exits = sum(1 for name, code in exits.items()
-                             if (name, code) != ('sim_bridge', 0))
-    outcome = measure_graph_episode(outcome, run.trajectory_file, trial)
-    deviation = torque_deviation(run.trajectory_file, trial)
-    outcome.note = (f'{label} stopped {STALL_TIME * 1e3:g} ms at {stage}; sim time advanced '
-                    f'{advanced * 1e3:g} ms meanwhile; max |tau - fault-free tau| '
-                    f'{deviation:.3g} N m')
-    if stalled_at is not None:
-        outcome.note += f'; graph stalled at {stalled_at:.3f} s'
-    outcome.held = (outcome.held and outcome.node_exits == 0 and stalled_at is None
-                    and deviation <= TORQUE_TOLERANCE)
-    return outcome
+    return judge_same_episode(outcome, run.trajectory_file, trial, exits, stalled_at,
+                              f'{label} stopped {STALL_TIME * 1e3:g} ms at {stage}; sim time '
+                              f'advanced {advanced * 1e3:g} ms meanwhile')

@@ -16,9 +16,7 @@ from dual_arm_control.nodes.messages import stamp_ns, time_msg
 from dual_arm_control.runtime.node_settings import FRI_PERIOD
 from dual_arm_control.tools.faults.graph_run import GraphRun
 from dual_arm_control.tools.faults.outcome import TrialOutcome
-from dual_arm_control.tools.faults.trial import (measure_graph_episode, skipped,
-                                                 torque_deviation, torque_limits,
-                                                 TORQUE_TOLERANCE)
+from dual_arm_control.tools.faults.trial import judge_same_episode, skipped, torque_limits
 import numpy as np
 
 GRAPH_TIMEOUT = 300.0
@@ -107,15 +105,6 @@ def torque_flood(kind, trial):
         exits = run.wait_for_end(GRAPH_TIMEOUT)
         stalled_at = None if 'sim_bridge' in exits else run.probe.clock_ns * 1e-9
         outcome.refused = sum(sum(c.values()) for c in run.probe.refusal_counts().values())
-    outcome.node_exits = sum(1 for label, code in exits.items()
-                             if (label, code) != ('sim_bridge', 0))
-    outcome = measure_graph_episode(outcome, run.trajectory_file, trial)
-    deviation = torque_deviation(run.trajectory_file, trial)
-    outcome.note = (f'{arm}: {flood.sent} flood messages over {flood.cycles} cycles; '
-                    f'{flood.republished} flooded states republished; '
-                    f'max |tau - fault-free tau| {deviation:.3g} N m')
-    if stalled_at is not None:
-        outcome.note += f'; graph stalled at {stalled_at:.3f} s'
-    outcome.held = (outcome.held and outcome.node_exits == 0 and stalled_at is None
-                    and deviation <= TORQUE_TOLERANCE)
-    return outcome
+    return judge_same_episode(outcome, run.trajectory_file, trial, exits, stalled_at,
+                              f'{arm}: {flood.sent} flood messages over {flood.cycles} cycles; '
+                              f'{flood.republished} flooded states republished')

@@ -152,3 +152,23 @@ def torque_deviation(trajectory_file, trial):
             return np.inf
         deviation = max(deviation, float(np.abs(graph - fault_free).max(initial=0.0)))
     return deviation
+
+
+def judge_same_episode(outcome, trajectory_file, trial, exits, stalled_at, note):
+    """
+    Fill the outcome of a graph trial whose episode must be the fault-free one; return it.
+
+    exits: {label: exit code} of the graph's nodes; stalled_at: the sim time [s] the graph
+    stalled at, or None; note: what was injected. Held: no node exit, no stall, the safety
+    fields kept and the torques within TORQUE_TOLERANCE of the fault-free episode.
+    """
+    outcome.node_exits = sum(1 for label, code in exits.items()
+                             if (label, code) != ('sim_bridge', 0))
+    outcome = measure_graph_episode(outcome, trajectory_file, trial)
+    deviation = torque_deviation(trajectory_file, trial)
+    outcome.note = f'{note}; max |tau - fault-free tau| {deviation:.3g} N m'
+    if stalled_at is not None:
+        outcome.note += f'; graph stalled at {stalled_at:.3f} s'
+    outcome.held = (outcome.held and outcome.node_exits == 0 and stalled_at is None
+                    and deviation <= TORQUE_TOLERANCE)
+    return outcome
