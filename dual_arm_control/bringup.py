@@ -26,6 +26,7 @@ from domain_coordinator import domain_id
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.executables import EXECUTABLES
 from dual_arm_control.graph import GRAPHS, run_parameters
+from dual_arm_control.nodes.command_signature import COMMAND_KEY_VARIABLE, launch_key
 from dual_arm_control.nodes.ds_motion_generator import PHASE_LOG_PREFIX
 from dual_arm_control.nodes.process import REALTIME_PRIORITY_VARIABLE
 from dual_arm_control.parameter_files import key_applies, parameter_file_problems
@@ -113,8 +114,9 @@ class Launcher:
         self.stop_requested = False
 
     def environment(self):
-        """Return the children's environment: isolated domain, localhost discovery."""
+        """Return the children's environment: isolated domain, localhost discovery, command key."""
         env = dict(os.environ)
+        env[COMMAND_KEY_VARIABLE] = launch_key()
         env['ROS_DOMAIN_ID'] = str(self._domain_id)
         env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
         env.setdefault('AMENT_PREFIX_PATH', sys.prefix)

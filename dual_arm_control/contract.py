@@ -48,9 +48,12 @@ LATCHED_QOS = QoSProfile(
 # Depth of a node's sensor subscriptions in lockstep: the bridge runs ahead of a DS or QP tick
 # by at most the FRI cycles of one DS period (3), so 10 samples never overflow.
 SENSOR_SUBSCRIPTION_DEPTH = 10
-# Depth of command subscriptions (DS command, contact wrench, torque command): only the newest
+# Depth of command subscriptions (DS command, contact wrench): only the newest
 # counts, and in lockstep the next one is not sent before the current one was answered.
 COMMAND_SUBSCRIPTION_DEPTH = 1
+# Depth of the torque command subscriptions in lockstep (bridge, motion generator): a burst from
+# another publisher on the topic must not push the controller's command out before it is taken.
+TORQUE_COMMAND_SUBSCRIPTION_DEPTH = HISTORY_DEPTH
 
 
 @dataclass(frozen=True)
@@ -102,7 +105,7 @@ CLOCK = Topic('/clock', Clock, CONTROL_QOS)
 JOINT_STATES = Topic('joint_states', JointState, SENSOR_QOS, per_arm=True,
                      lockstep_depth=SENSOR_SUBSCRIPTION_DEPTH)
 TORQUE_COMMAND = Topic('torque_command', JointState, CONTROL_QOS, per_arm=True,
-                       lockstep_depth=COMMAND_SUBSCRIPTION_DEPTH)
+                       lockstep_depth=TORQUE_COMMAND_SUBSCRIPTION_DEPTH)
 # Raw F/T reading: the wrench the tool applies to the sensor, frame <arm>_ft_sensor.
 FT_WRENCH = Topic('ft_wrench', WrenchStamped, SENSOR_QOS, per_arm=True,
                   lockstep_depth=SENSOR_SUBSCRIPTION_DEPTH)

@@ -7,6 +7,7 @@ mode (lockstep | realtime), graph (full | hold), params_file (extra ROS paramete
 """
 
 from dual_arm_control.graph import GRAPHS, run_parameters
+from dual_arm_control.nodes.command_signature import COMMAND_KEY_VARIABLE, launch_key
 from dual_arm_control.resources import config_path
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
@@ -29,7 +30,8 @@ def graph_nodes(context):
             parameters.append(params_file)
         actions.append(Node(package='dual_arm_control', executable=spec.executable,
                             name=spec.name, namespace=spec.namespace or None,
-                            parameters=parameters, output='screen'))
+                            parameters=parameters, output='screen',
+                            additional_env={COMMAND_KEY_VARIABLE: launch_key()}))
     return actions
 
 

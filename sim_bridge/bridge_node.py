@@ -4,7 +4,8 @@ sim_bridge: the FRI stand-in, a ROS 2 shell around the MuJoCo twin of the two-ar
 Each FRI cycle the bridge publishes what the robots report (runtime FriCycle.begin: joint
 states, FT wrenches, the mocap samples delivered at that cycle), /clock and the simulator's
 ground truth, and applies one torque command per arm (FriCycle: refusals, late commands, the
-hold policy). Two modes:
+hold policy). With a command key in its environment (nodes.command_signature: the launcher's)
+it takes only torque commands its controllers signed; others are dropped and counted. Two modes:
 
 - lockstep (default): the state of cycle k (stamp t_k) is published and the twin advances only
   when every arm answered with a command stamped t_k (a refused command counts as the answer:
@@ -37,6 +38,7 @@ import time
 
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import DualArmControlError
+from dual_arm_control.nodes.command_signature import command_key, signed
 from dual_arm_control.nodes.messages import stamp_ns
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import NodeParameters
@@ -83,6 +85,7 @@ class SimBridge(Node):
         if settings['seed'] >= 0:
             self.twin.reset(settings['seed'])
         self.fri = FriCycle(self.twin)
+        self._command_key = command_key()
         lockstep = self.mode == 'lockstep'
         self._publish_ground_truth = settings['publish_ground_truth']
         self._duration = settings['duration']
@@ -168,7 +171,15 @@ class SimBridge(Node):
     # -- the FRI cycle ---------------------------------------------------------------------------
 
     def _on_torque_command(self, arm, msg):
-        all_answered = self.fri.answer(arm, stamp_ns(msg.header.stamp), msg.name, msg.effort)
+        stamp = stamp_ns(msg.header.stamp)
+        if self._command_key is not None and not signed(self._command_key, stamp, msg.name,
+                                                        msg.effort, msg.header.frame_id):
+            self.fri.refuse_foreign(arm)
+            self._warn_throttled((arm, 'foreign'), (
+                f'{arm} torque command not signed by its controller, dropped (so far: '
+                f'{self.fri.counters[arm].foreign})'))
+            return
+        all_answered = self.fri.answer(arm, stamp, msg.name, msg.effort)
         reason = self.fri.refused(arm)
         if reason is not None:
             self._warn_throttled((arm, reason), (

@@ -14,6 +14,7 @@ import sys
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.description.cell import arm_model
+from dual_arm_control.nodes.command_signature import command_key, command_signature
 from dual_arm_control.nodes.messages import joint_state_of, stamp_ns
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import NodeParameters
@@ -43,6 +44,7 @@ class GravityCompController(Node):
         self._model = arm_model(self.arm)
         self._joint_names = contract.joint_names(self.arm)
         self._command_pub = create_topic_publisher(self, contract.TORQUE_COMMAND)
+        self._command_key = command_key()
         self._state_sub = self.create_subscription(
             contract.JOINT_STATES.msg_type, contract.JOINT_STATES.name, self._on_joint_state,
             contract.JOINT_STATES.qos)
@@ -78,6 +80,9 @@ class GravityCompController(Node):
         command.name = self._joint_names
         command.position = state.position.tolist()
         command.effort = torque.tolist()
+        if self._command_key is not None:
+            command.header.frame_id = command_signature(
+                self._command_key, stamp_ns(msg.header.stamp), self._joint_names, torque)
         self._command_pub.publish(command)
 
 

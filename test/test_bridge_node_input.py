@@ -9,6 +9,7 @@ import math
 
 from dual_arm_control import contract
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.nodes.command_signature import COMMAND_KEY_VARIABLE, command_signature
 from dual_arm_control.nodes.messages import stamp_ns, time_msg
 from dual_arm_control.resources import config_path
 from dual_arm_control.runtime.fri import command_refusal
@@ -101,11 +102,13 @@ class Controllers:
             self._pubs[arm] = probe.node.create_publisher(
                 JointState, contract.TORQUE_COMMAND.resolved(arm), contract.TORQUE_COMMAND.qos)
 
-    def send(self, arm, stamp, efforts, names=None):
+    def send(self, arm, stamp, efforts, names=None, key=None):
         msg = JointState()
         msg.header.stamp = stamp
         msg.name = contract.joint_names(arm) if names is None else names
         msg.effort = [float(value) for value in efforts]
+        if key is not None:
+            msg.header.frame_id = command_signature(key, stamp_ns(stamp), msg.name, msg.effort)
         self._pubs[arm].publish(msg)
 
 
@@ -134,6 +137,36 @@ def test_lockstep_advances_only_when_both_arms_answered(graph):
     controllers.send('left', first_stamp, hold['left'])
     assert probe.spin_until(lambda: bridge.fri.counters['left'].ignored == 1, SPIN_TIMEOUT)
     assert bridge.fri.cycles == 1
+
+
+def test_with_a_command_key_a_foreign_command_answers_no_cycle(ros_domain, monkeypatch):
+    """Unsigned commands for the cycle (huge, NaN) are dropped; the signed one is applied."""
+    key = 'f00d' * 8
+    monkeypatch.setenv(COMMAND_KEY_VARIABLE, key)
+    probe = GraphProbe(ros_domain)
+    bridge = SimBridge(context=probe.context, parameter_overrides=[
+        Parameter('publish_ground_truth', value=False)])
+    probe.executor.add_node(bridge)
+    try:
+        controllers = Controllers(probe)
+        assert probe.spin_until(lambda: all(controllers.states.values()), SPIN_TIMEOUT)
+        stamp = controllers.states['left'][-1].header.stamp
+        controllers.send('left', stamp, [1e6] * 7)
+        controllers.send('left', stamp, [math.nan] * 7)
+        controllers.send('left', stamp, [0.0] * 7, key=b'not the key')
+        assert probe.spin_until(lambda: bridge.fri.counters['left'].foreign == 3, SPIN_TIMEOUT)
+        assert bridge.fri.missing() == list(contract.ARMS)
+        hold = {arm: bridge.twin.hold_torques(arm) for arm in contract.ARMS}
+        for arm in contract.ARMS:
+            controllers.send(arm, stamp, hold[arm], key=key.encode())
+        assert probe.spin_until(lambda: bridge.fri.cycles == 1, SPIN_TIMEOUT)
+        left = bridge.fri.counters['left']
+        assert left.accepted == 1 and left.clamps == 0 and left.refused['non_finite'] == 0
+        assert np.allclose(bridge.fri.applied['left'], hold['left'], rtol=0.0, atol=1e-12)
+    finally:
+        probe.executor.remove_node(bridge)
+        bridge.destroy_node()
+        probe.close()
 
 
 def test_lockstep_republishes_an_unanswered_state(graph):

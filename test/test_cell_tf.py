@@ -11,6 +11,7 @@ import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control import contract
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix
+from dual_arm_control.nodes.cell_state_publisher import CellStatePublisher
 from dual_arm_control.nodes.messages import quaternion, stamp_ns, vector3
 from graph_helpers import GraphProbe, parameter_arguments, ProcessGroup
 from nav_msgs.msg import Odometry
@@ -41,6 +42,16 @@ def pose_in_world(frame, parents, static, dynamic, stamp):
         pose = transform_matrix(transform) @ pose
         frame = parents[frame]
     return pose
+
+
+def test_the_node_is_destroyed_without_an_error(ros_domain):
+    """It used to overwrite rclpy's Node._subscriptions: destroy_node raised at every exit."""
+    probe = GraphProbe(ros_domain, PROBE)
+    try:
+        node = CellStatePublisher(context=probe.context)
+        node.destroy_node()
+    finally:
+        probe.close()
 
 
 def test_late_subscriber_gets_description_and_tf_matching_the_twin(tmp_path, ros_domain):

@@ -19,6 +19,7 @@ from dual_arm_control.core.passive_control import (hold_torque, PassiveControlle
                                                    PassiveControllerConfig)
 from dual_arm_control.core.tracker import TrackerConfig
 from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.nodes.command_signature import COMMAND_KEY_VARIABLE, command_signature
 from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
 from dual_arm_control.nodes.messages import (arm_command_message, arm_command_of, fill_odometry,
                                              stamp_ns, time_msg)
@@ -524,7 +525,8 @@ def test_sensor_subscriptions_are_best_effort_and_commands_keep_one(harness_fact
         assert qos[name].reliability == ReliabilityPolicy.RELIABLE and qos[name].depth == 1
     for topic in (contract.FT_WRENCH, contract.MOCAP_OBJECT_POSE):
         assert topic.subscription_qos(lockstep).reliability == ReliabilityPolicy.BEST_EFFORT
-    assert contract.TORQUE_COMMAND.subscription_qos(lockstep).depth == 1
+    assert contract.TORQUE_COMMAND.subscription_qos(lockstep).depth == (
+        contract.TORQUE_COMMAND_SUBSCRIPTION_DEPTH if lockstep else 1)
 
 
 # -- wrench_qp -----------------------------------------------------------------------------------
@@ -669,6 +671,33 @@ def motion_generator(harness_factory):
     harness.record(contract.PHASE)
     harness.connect()
     return harness
+
+
+def test_with_a_command_key_only_signed_commands_are_a_sign_of_life(harness_factory,
+                                                                    monkeypatch):
+    """An unsigned torque command (a flood) is no sign of life of a controller."""
+    key = 'ab' * 16
+    monkeypatch.setenv(COMMAND_KEY_VARIABLE, key)
+    harness = harness_factory(lambda context: DsMotionGenerator(
+        context=context, parameter_overrides=[
+            Parameter('scenario', value=str(scenario_path('paper_toss'))),
+            Parameter('lockstep', value=True)]))
+    for arm in contract.ARMS:
+        harness.publisher(contract.TORQUE_COMMAND, arm)
+    harness.connect()
+    watch = harness.node.step.controllers
+    watch.newly_lost(0, judge=False)
+    for arm, signature_key in (('left', None), ('right', key.encode())):
+        command = contract.TORQUE_COMMAND.msg_type()
+        command.name = contract.joint_names(arm)
+        command.effort = [0.0] * 7
+        if signature_key is not None:
+            command.header.frame_id = command_signature(signature_key, 0, command.name,
+                                                        command.effort)
+        harness.send(contract.TORQUE_COMMAND.resolved(arm), command)
+    assert harness.spin_until(lambda: watch.silence_ns('right', 0) == 0)
+    harness.spin_quietly()
+    assert watch.silence_ns('left', 0) is None
 
 
 def feed_cycle(harness, t_ns):

@@ -19,11 +19,13 @@ from dual_arm_control.core.reachability import (grasp_shifts, plan_grasp,
                                                 ReachabilityConfig)
 from dual_arm_control.core.wrench_distribution import (grip_normal_force, qp_config_for_mass,
                                                        WrenchDistributorConfig)
+from dual_arm_control.core.wrench_qp import ContactWrenchQP, NORMAL_FORCE_LIMIT
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.episode import episode_metrics
 from dual_arm_control.evaluation.metrics import tilt_degrees
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.inprocess import run_episode, RunnerConfig
+from dual_arm_control.runtime.node_settings import OBJECT_MASS_RANGE
 from dual_arm_control.scenario import load_scenario
 from dual_arm_control.trial_sampling import sample_trial
 import numpy as np
@@ -145,6 +147,23 @@ def test_grip_force_holds_the_heaviest_box_under_the_design_acceleration():
     assert qp_config_for_mass(config, 0.7) == config.qp
     assert grip_normal_force(6.0, 0.9, 6.0, 9.81, 1.2) == pytest.approx(
         1.2 * 6.0 * 15.81 / (math.sqrt(2.0) * 0.9))
+
+
+@pytest.mark.parametrize('bounds', [
+    {}, {'min_normal_force': 0.0},
+    {'min_normal_force': 0.5, 'max_normal_force': NORMAL_FORCE_LIMIT, 'squeeze_force': 1.0}])
+def test_grip_bounds_stay_valid_for_every_valid_setting_and_mass(bounds):
+    """A valid parameter set or box mass never makes the QP's config invalid (the node died)."""
+    config = WrenchDistributorConfig()
+    config = replace(config, qp=replace(config.qp, **bounds))
+    for mass in (0.7, 10.0, 50.0, OBJECT_MASS_RANGE[1]):
+        required = grip_normal_force(mass, config.qp.friction_coefficient,
+                                     config.design_acceleration, config.object.gravity,
+                                     config.grip_safety_factor)
+        qp = qp_config_for_mass(config, mass)
+        ContactWrenchQP(qp)
+        assert qp.min_normal_force < qp.max_normal_force <= NORMAL_FORCE_LIMIT
+        assert qp.min_normal_force >= min(required, NORMAL_FORCE_LIMIT) - 1e-9
 
 
 def test_nominal_grasp_is_reachable_and_a_close_yawed_one_is_refused(cell):

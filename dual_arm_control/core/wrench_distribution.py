@@ -7,6 +7,7 @@ the form the arm controllers apply through J^T.
 """
 
 from dataclasses import dataclass, replace
+import math
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import SolverError
@@ -16,7 +17,7 @@ from dual_arm_control.core.object_wrench import (box_inertia, desired_object_wre
 from dual_arm_control.core.pad_contact import pad_contact_geometry
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.settings import check_settings, setting
-from dual_arm_control.core.wrench_qp import ContactWrenchQP, WrenchQPConfig
+from dual_arm_control.core.wrench_qp import ContactWrenchQP, NORMAL_FORCE_LIMIT, WrenchQPConfig
 import numpy as np
 
 GRASPING_PHASES = (Phase.CONTACT, Phase.MANIPULATE)
@@ -76,15 +77,24 @@ def grip_normal_force(mass, friction_coefficient, acceleration, gravity, safety_
 
 
 def qp_config_for_mass(config, mass):
-    """Return config.qp with its normal-force bounds raised to hold mass (grip_normal_force)."""
+    """
+    Return config.qp with its normal-force bounds raised to hold mass (grip_normal_force).
+
+    The upper bound rises by the ratio max / min; both stay within NORMAL_FORCE_LIMIT (the lower
+    one below the upper): a box that needs more is gripped as hard as the limit allows, so no
+    valid setting or mass makes the QP's config invalid.
+    """
     qp = config.qp
     required = grip_normal_force(mass, qp.friction_coefficient, config.design_acceleration,
                                  config.object.gravity, config.grip_safety_factor)
     if required <= qp.min_normal_force:
         return qp
-    span = qp.max_normal_force / qp.min_normal_force
-    return replace(qp, min_normal_force=required, squeeze_force=max(qp.squeeze_force, required),
-                   max_normal_force=max(qp.max_normal_force, span * required))
+    ratio = qp.max_normal_force / qp.min_normal_force if qp.min_normal_force > 0 else math.inf
+    max_force = min(max(qp.max_normal_force, ratio * required), NORMAL_FORCE_LIMIT)
+    min_force = min(required, math.nextafter(max_force, 0.0))
+    return replace(qp, min_normal_force=min_force,
+                   squeeze_force=min(max(qp.squeeze_force, min_force), max_force),
+                   max_normal_force=max_force)
 
 
 @dataclass(frozen=True)

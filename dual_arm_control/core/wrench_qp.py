@@ -50,7 +50,8 @@ from dual_arm_control.core.validation import check_range
 import numpy as np
 import proxsuite
 
-
+# Largest normal force a pad may be asked for [N]: the range of every normal-force setting.
+NORMAL_FORCE_LIMIT = 1000.0
 _N_WRENCH = 12
 _N_SLACK = 6
 _N_VARIABLES = _N_WRENCH + 2 * _N_SLACK
@@ -99,13 +100,14 @@ class WrenchQPConfig:
         0.05, 'Half extent of the pad along the pad y axis: |m_x| <= this * f_z.',
         unit='m', low=0, high=1.0, low_open=True)
     min_normal_force: float = setting(
-        30.0, 'Lower bound of the normal force of a pad in contact.', unit='N', low=0, high=1000.0)
+        30.0, 'Lower bound of the normal force of a pad in contact.', unit='N', low=0,
+        high=NORMAL_FORCE_LIMIT)
     max_normal_force: float = setting(
         45.0, 'Upper bound of the normal force of a pad in contact, above min_normal_force.',
-        unit='N', low=0, high=1000.0, low_open=True)
+        unit='N', low=0, high=NORMAL_FORCE_LIMIT, low_open=True)
     squeeze_force: float = setting(
         30.0, 'Normal force of the preferred wrench f_e^* of a pad in contact, at most '
-        'max_normal_force.', unit='N', low=0, high=1000.0)
+        'max_normal_force.', unit='N', low=0, high=NORMAL_FORCE_LIMIT)
     contact_distance: float = setting(
         0.055, 'A pad whose normal distance to its face exceeds this may not push (Q_eo).',
         unit='m', low=0, high=1.0)
@@ -143,8 +145,8 @@ class WrenchQPConfig:
     def __post_init__(self):
         """Validate every field; raise ConfigError naming the field, value and range."""
         check_settings(self)
-        check_range('max_normal_force', self.max_normal_force, self.min_normal_force, 1000.0,
-                    'N', low_open=True)
+        check_range('max_normal_force', self.max_normal_force, self.min_normal_force,
+                    NORMAL_FORCE_LIMIT, 'N', low_open=True)
         check_range('squeeze_force', self.squeeze_force, 0.0, self.max_normal_force, 'N')
 
 

@@ -61,14 +61,14 @@ class CellStatePublisher(Node):
         stamp = self.get_clock().now().to_msg()
         self._static_pub.publish(contract.TF_STATIC.msg_type(
             transforms=[transform_message(stamp, transform) for transform in static]))
-        self._subscriptions = [self.create_subscription(
-            contract.JOINT_STATES.msg_type, contract.JOINT_STATES.resolved(arm),
-            lambda msg, arm=arm: self._on_joint_state(arm, msg),
-            contract.JOINT_STATES.subscription_qos(lockstep=False))
-            for arm in contract.ARMS]
-        self._subscriptions.append(self.create_subscription(
+        for arm in contract.ARMS:
+            self.create_subscription(
+                contract.JOINT_STATES.msg_type, contract.JOINT_STATES.resolved(arm),
+                lambda msg, arm=arm: self._on_joint_state(arm, msg),
+                contract.JOINT_STATES.subscription_qos(lockstep=False))
+        self.create_subscription(
             contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name, self._on_object_state,
-            contract.OBJECT_STATE.subscription_qos(lockstep=False)))
+            contract.OBJECT_STATE.subscription_qos(lockstep=False))
         self.get_logger().info(f'cell state publisher up: {len(self.frames.links)} links, '
                                f'{len(static)} static frames, /tf every '
                                f'{settings["tf_period"]:g} s')

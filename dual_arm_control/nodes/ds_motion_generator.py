@@ -24,6 +24,7 @@ from dual_arm_control import contract
 from dual_arm_control.contract import ARMS, joint_names
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.nodes.command_signature import command_key, signed
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.markers import motion_markers
 from dual_arm_control.nodes.messages import (arm_command_message, fill_twist, joint_state_of,
@@ -55,6 +56,7 @@ class DsMotionGenerator(Node):
 
     def __init__(self, node_name='ds_motion_generator', **node_options):
         super().__init__(node_name, **node_options)
+        self._command_key = command_key()
         cell = load_cell()
         self._scenario = None
         self._defaults = {}
@@ -111,7 +113,7 @@ class DsMotionGenerator(Node):
             # The controllers' torque commands: only their stamps, as a sign of life.
             self.create_subscription(
                 contract.TORQUE_COMMAND.msg_type, contract.TORQUE_COMMAND.resolved(arm),
-                lambda msg, arm=arm: self.step.command_heard(arm, stamp_ns(msg.header.stamp)),
+                lambda msg, arm=arm: self._on_torque_command(arm, msg),
                 contract.TORQUE_COMMAND.subscription_qos(lockstep))
         self.create_subscription(contract.OBJECT_STATE.msg_type, contract.OBJECT_STATE.name,
                                  lambda msg: self._on_input('object', msg),
@@ -175,6 +177,12 @@ class DsMotionGenerator(Node):
                 f'{contract.WORLD_FRAME!r} expected')
             return
         self.set_parameters([Parameter('landing_target', value=target.tolist())])
+
+    def _on_torque_command(self, arm, msg):
+        stamp = stamp_ns(msg.header.stamp)
+        if self._command_key is None or signed(self._command_key, stamp, msg.name, msg.effort,
+                                               msg.header.frame_id):
+            self.step.command_heard(arm, stamp)
 
     def _on_command(self, command, response):
         self.step.request(command)

@@ -18,6 +18,7 @@ from dual_arm_control import contract
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.passive_control import PassiveControllerConfig
 from dual_arm_control.description.cell import arm_model, load_cell
+from dual_arm_control.nodes.command_signature import command_key, command_signature
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
 from dual_arm_control.nodes.messages import (arm_command_of, joint_state_of, stamp_ns,
                                              time_msg, wrench_of)
@@ -53,6 +54,7 @@ class PassiveControllerNode(Node):
         self._torque_pub = create_topic_publisher(self, contract.TORQUE_COMMAND)
         self._torque_msg = contract.TORQUE_COMMAND.msg_type()
         self._torque_msg.name = self._joint_names
+        self._command_key = command_key()
         self.create_subscription(contract.DS_COMMAND.msg_type, contract.DS_COMMAND.name,
                                  self._on_ds_command,
                                  contract.DS_COMMAND.subscription_qos(self.lockstep))
@@ -120,6 +122,9 @@ class PassiveControllerNode(Node):
         torque = self.step.cycle(self._joint_state)
         self._torque_msg.header.stamp = time_msg(t_ns)
         self._torque_msg.effort = torque.effort.tolist()
+        if self._command_key is not None:
+            self._torque_msg.header.frame_id = command_signature(
+                self._command_key, t_ns, self._joint_names, torque.effort)
         self._torque_pub.publish(self._torque_msg)
         self._diagnostics.publish_if_due(t_ns, self._report)
 

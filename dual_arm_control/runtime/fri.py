@@ -10,7 +10,8 @@ KUKA's FRI drives a robot:
   per arm stamped with it;
 - answer() takes an arm's command: a command stamped for another cycle is ignored (counted; one
   for an earlier cycle counts as late); a malformed one (wrong joints, NaN/Inf) is refused,
-  counted, and that arm holds this cycle;
+  counted, and that arm holds this cycle; refuse_foreign() counts a command that is not from the
+  arm's controller (the bridge checks its signature): it is no answer;
 - advance() applies the commands and steps the backend. An arm without a command for the cycle
   (realtime: its deadline passed) keeps its previous commanded torque for one cycle, then holds
   (the robot's own hold: gravity compensation, joint stiffness toward the joint positions of
@@ -69,13 +70,15 @@ class ArmCounters:
     previous_torque_repeats: int = 0
     watchdog_holds: int = 0
     clamps: int = 0
+    foreign: int = 0
 
     def as_dict(self):
         """Return the counters as a flat {name: count}."""
         counts = {'commands_accepted': self.accepted, 'ignored_commands': self.ignored,
                   'late_commands': self.late,
                   'previous_torque_repeats': self.previous_torque_repeats,
-                  'watchdog_holds': self.watchdog_holds, 'torque_clamps': self.clamps}
+                  'watchdog_holds': self.watchdog_holds, 'torque_clamps': self.clamps,
+                  'refused_foreign': self.foreign}
         counts.update({f'refused_{reason}': n for reason, n in self.refused.items()})
         return counts
 
@@ -156,6 +159,10 @@ class FriCycle:
             counters.refused[reason] += 1
             self._answers[arm] = reason
         return self.all_answered()
+
+    def refuse_foreign(self, arm):
+        """Count a command for arm that is not from its controller; it answers no cycle."""
+        self.counters[arm].foreign += 1
 
     def refused(self, arm):
         """Return the refusal reason of arm's answer to this cycle, or None."""

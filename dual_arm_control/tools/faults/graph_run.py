@@ -57,9 +57,10 @@ class SimProbe:
                 lambda msg, arm=arm: self._on_command(arm, msg), contract.TORQUE_COMMAND.qos)
 
     def close(self):
-        """Destroy the node and shut its context down."""
+        """Destroy the node, shut its executor and context down (else a DDS participant leaks)."""
         self.executor.remove_node(self.node)
         self.node.destroy_node()
+        self.executor.shutdown()
         rclpy.try_shutdown(context=self.context)
 
     def _on_sim_time(self, t_ns):

@@ -22,7 +22,9 @@ from dual_arm_control.tools.faults.malformed import draw_malformed
 from dual_arm_control.tools.faults.outcome import (bag_status, fill_from_trajectory, SETTLE_TIME,
                                                    TrialOutcome)
 from dual_arm_control.tools.faults.param_fuzz import parameter_fuzz
-from dual_arm_control.tools.faults.trial import (measure_graph_episode, run_inprocess,
+from dual_arm_control.tools.faults.slow_consumer import slow_consumer
+from dual_arm_control.tools.faults.torque_flood import torque_flood
+from dual_arm_control.tools.faults.trial import (measure_graph_episode, run_inprocess, skipped,
                                                  torque_limits)
 from dual_arm_control.trajectory_log import load_trajectory
 
@@ -46,15 +48,11 @@ class FaultKind:
     run: object
 
 
-def _skipped(kind, trial, why):
-    return TrialOutcome(kind, trial.index, trial.seed, note=f'skipped: {why}')
-
-
 def controller_kill(kind, stage, trial):
     """SIGKILL one arm's controller (left on even trials) at a stage; the twin goes on."""
     t_kill = trial.stage_time(stage)
     if t_kill is None:
-        return _skipped(kind, trial, f'no {stage} in the fault-free episode')
+        return skipped(kind, trial, f'no {stage} in the fault-free episode')
     arm = ARMS[trial.index % 2]
     outcome = TrialOutcome(kind, trial.index, trial.seed)
     with GraphRun(trial.scenario_file(), trial.out_dir, trial.domain, t_kill + AFTER_KILL,
@@ -107,7 +105,7 @@ def mocap_dropout(kind, duration, stage, trial):
     """Lose every mocap sample for duration [s] from a stage on (impact: centred on it)."""
     t_stage = trial.stage_time(stage)
     if t_stage is None:
-        return _skipped(kind, trial, f'no {stage} in the fault-free episode')
+        return skipped(kind, trial, f'no {stage} in the fault-free episode')
     start = t_stage - 0.5 * duration if stage == 'impact' else t_stage
     return _inprocess(kind, trial, start, dropout_start=start, dropout_duration=duration)
 
@@ -116,7 +114,7 @@ def mocap_outlier(kind, jump, trial):
     """Displace the mocap sample at the first contact by jump [m] along the squeeze axis."""
     t_impact = trial.stage_time('impact')
     if t_impact is None:
-        return _skipped(kind, trial, 'no impact in the fault-free episode')
+        return skipped(kind, trial, 'no impact in the fault-free episode')
     return _inprocess(kind, trial, t_impact, outlier_time=t_impact, outlier_jump=jump)
 
 
@@ -188,4 +186,11 @@ FAULT_KINDS = {kind.name: kind for kind in [
     FaultKind('malformed_burst', 'graph', 'refused and counted per node and input in '
               '/diagnostics; no NaN torque, none beyond the limits; no node exits, no stall',
               partial(malformed_burst, 'malformed_burst')),
+    FaultKind('torque_flood', 'graph', 'the bridge applies one command per cycle and arm, its '
+              "controller's: the flood's are ignored or refused and counted; the episode is the "
+              'fault-free one (the same torques); no NaN torque, none beyond the limits; no node '
+              'exits, no stall', partial(torque_flood, 'torque_flood')),
+    FaultKind('slow_consumer', 'graph', 'lockstep waits for the stalled node: the episode is '
+              'the fault-free one (the same torques); no NaN torque, none beyond the limits; no '
+              'node exits, no stall', partial(slow_consumer, 'slow_consumer')),
 ]}

@@ -15,8 +15,10 @@ trial's own fault-free episode.
 Columns: **trials** run (skipped: the fault-free episode lacks the stage, e.g. the grasp is
 refused as out of reach); **held**: trials that kept the kind's rule; **recovered**: trials whose
 episode still met its task criteria (in-process kinds: fault-free successes of the same trials
-in brackets; a malformed burst also sends valid-looking messages, e.g. a landing target, that
-change the task, so its count says little);
+in brackets; a torque flood or a slow consumer held its rule only if the episode is the trial's
+fault-free one to 1e-9 N m, so there it counts the fault-free successes; a malformed burst also
+sends valid-looking messages, e.g. a landing target, that change the task, so its count says
+little);
 **refused**: messages refused and counted by the nodes (sum over trials); **NaN tau**: NaN
 torques applied; **clamps**: commands beyond the torque limits; **worst tau**: largest applied
 |tau| / limit; **worst speed**: largest tool speed of a killed controller's arm from 0.3 s after

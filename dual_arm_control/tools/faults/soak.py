@@ -151,10 +151,24 @@ class SoakRun:
                 'wall_time': round(wall, 2)}
 
 
-def run_soak(plan, out_dir, domain, progress=print):
-    """Run a soak (SoakPlan); write OUT/soak.json; return its summary (soak_report)."""
+def write_soak(out_dir, plan, summary, records):
+    """Write OUT/soak.json: the plan, the summary and every episode's record."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / 'soak.json').write_text(json.dumps(
+        {'plan': plan.__dict__, 'summary': summary, 'episodes': records}, indent=1) + '\n')
+
+
+def run_soak(plan, out_dir, domain, progress=print, stop_requested=lambda: False):
+    """
+    Run a soak (SoakPlan); write OUT/soak.json; return its summary (soak_report).
+
+    OUT/soak.json is written after every block as well (summary 'running'). Once
+    stop_requested() is true, no more counted episodes start: the re-runs follow the ended one.
+    """
     reruns = [plan.seed, plan.seed + 1]
     seeds = [plan.seed + index for index in range(plan.episodes)] + reruns
+    counted = plan.episodes
     records = []
     with SoakRun(plan, out_dir, domain) as soak:
         soak.start(seeds[0])
@@ -165,6 +179,10 @@ def run_soak(plan, out_dir, domain, progress=print):
                 break
             resources = {label: process_resources(pid)
                          for label, pid in soak.run.pids().items()}
+            if index < counted - 1 and stop_requested():
+                counted = index + 1
+                seeds[counted:] = reruns
+                progress(f'soak: stopped after {counted} episodes; the re-runs follow')
             last = index == len(seeds) - 1
             data = soak.next_episode(plan.seed if last else seeds[index + 1])
             records.append(soak.record(index, seed, data, resources,
@@ -174,13 +192,10 @@ def run_soak(plan, out_dir, domain, progress=print):
                 progress(f'soak: episode {index} seed {seed}: success {records[-1]["success"]}, '
                          f'RSS {sum(records[-1]["rss_kb"].values()) / 1024:.0f} MB, '
                          f'fds {sum(records[-1]["fds"].values())}')
+                write_soak(out_dir, plan, {'running': True, 'episodes': len(records)}, records)
         exits = soak.run.exited()
-    summary = soak_summary(records[:plan.episodes], records[plan.episodes:], plan.warmup,
-                           plan.block)
+    summary = soak_summary(records[:counted], records[counted:], plan.warmup, plan.block)
     summary['node_exits'] = dict(exits)
     summary['passed'] = summary['passed'] and not exits
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / 'soak.json').write_text(json.dumps(
-        {'plan': plan.__dict__, 'summary': summary, 'episodes': records}, indent=1) + '\n')
+    write_soak(out_dir, plan, summary, records)
     return summary

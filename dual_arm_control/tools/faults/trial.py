@@ -20,11 +20,14 @@ from dual_arm_control.evaluation.trials import write_trial_scenario
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.scenario import load_scenario
-from dual_arm_control.tools.faults.outcome import fill_from_trajectory
+from dual_arm_control.tools.faults.outcome import fill_from_trajectory, TrialOutcome
 from dual_arm_control.trajectory_log import load_trajectory
 from dual_arm_control.trial_sampling import sample_trial
+import numpy as np
 
 TEMPLATE = 'paper_toss_random'
+# Largest |tau| difference [N m] of an episode that is still the fault-free one.
+TORQUE_TOLERANCE = 1e-9
 
 
 @lru_cache(maxsize=1)
@@ -122,4 +125,50 @@ def measure_graph_episode(outcome, trajectory_file, trial, dead_arms=()):
                                    trial.release_time)
     if not dead_arms:
         outcome.recovered = bool(episode_metrics(trial.scenario, data, cell())['success'])
+    return outcome
+
+
+def skipped(kind, trial, why):
+    """Return the outcome of a trial that is not run, and why."""
+    return TrialOutcome(kind, trial.index, trial.seed, note=f'skipped: {why}')
+
+
+def torque_deviation(trajectory_file, trial):
+    """
+    Return the largest |tau| difference [N m] of a graph run from the trial's fault-free episode.
+
+    The fault-free episode runs in-process (the lockstep graph's episode to 1e-9); inf if the
+    logs differ in length or the graph run left none.
+    """
+    try:
+        data = load_trajectory(trajectory_file)
+    except DualArmControlError:
+        return np.inf
+    nominal = run_inprocess(trial.scenario)[1]
+    deviation = 0.0
+    for arm in ARMS:
+        graph, fault_free = np.asarray(data[f'{arm}_tau'], float), nominal[f'{arm}_tau']
+        if graph.shape != fault_free.shape:
+            return np.inf
+        deviation = max(deviation, float(np.abs(graph - fault_free).max(initial=0.0)))
+    return deviation
+
+
+def judge_same_episode(outcome, trajectory_file, trial, exits, stalled_at, note):
+    """
+    Fill the outcome of a graph trial whose episode must be the fault-free one; return it.
+
+    exits: {label: exit code} of the graph's nodes; stalled_at: the sim time [s] the graph
+    stalled at, or None; note: what was injected. Held: no node exit, no stall, the safety
+    fields kept and the torques within TORQUE_TOLERANCE of the fault-free episode.
+    """
+    outcome.node_exits = sum(1 for label, code in exits.items()
+                             if (label, code) != ('sim_bridge', 0))
+    outcome = measure_graph_episode(outcome, trajectory_file, trial)
+    deviation = torque_deviation(trajectory_file, trial)
+    outcome.note = f'{note}; max |tau - fault-free tau| {deviation:.3g} N m'
+    if stalled_at is not None:
+        outcome.note += f'; graph stalled at {stalled_at:.3f} s'
+    outcome.held = (outcome.held and outcome.node_exits == 0 and stalled_at is None
+                    and deviation <= TORQUE_TOLERANCE)
     return outcome
