@@ -87,7 +87,11 @@ class DualArmMotionGenerator:
         self._grasp_roll = float(finite_array('grasp_roll', roll, ()))
 
     def set_elbow_reaches(self, elbow_reaches):
-        """Keep every run-in within the arms' elbow reach ({arm: ElbowReach}; None: do not)."""
+        """
+        Keep every run-in within the arms' elbow reach ({arm: ElbowReach}; None: do not).
+
+        Not in a moving grab: its run-in follows the belt (core.moving_grab), tuned without it.
+        """
         self._elbow_reaches = elbow_reaches
 
     def halt(self):
@@ -155,9 +159,10 @@ class DualArmMotionGenerator:
                 self._belt_velocity, v_object, dt, config.moving_grab.velocity_time_constant)
         object_velocity = self._object_velocity(p_object, v_object, phase, dt)
         omega_object = self._object_angular_velocity(R_object, phase)
+        elbow_reaches = None if config.moving_grab.enabled else self._elbow_reaches
         directions = impact_directions(config, frames, object_velocity,
                                        support_height_below(config, p_object), self._grasp_roll,
-                                       self._elbow_reaches)
+                                       elbow_reaches)
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
             commands = yield_to_single_contact(commands, contacts, frames)

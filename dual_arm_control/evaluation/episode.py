@@ -75,8 +75,8 @@ def _contact_directions(scenario, cell):
     return ({arm: frames[arm].normal for arm in ARMS},
             impact_directions(config, frames, motion,
                               support_height_below(config, scenario.object.position),
-                              elbow_reaches={arm: arm_model(arm, cell).elbow_reach()
-                                             for arm in ARMS}))
+                              elbow_reaches=None if scenario.incoming_belt is not None
+                              else {arm: arm_model(arm, cell).elbow_reach() for arm in ARMS}))
 
 
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
