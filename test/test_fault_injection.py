@@ -8,6 +8,7 @@ one sample; both must be exactly what the scenario asks, and nothing else may ch
 from dataclasses import replace
 
 from dual_arm_control.scenario import load_scenario
+from dual_arm_control.tools.faults.outcome import premature_drop
 import numpy as np
 import pytest
 from sim_bridge.twin import DualArmTwin
@@ -56,3 +57,21 @@ def test_fault_fields_out_of_range_are_refused(field, value):
     from dual_arm_control.sensor_models import MocapConfig
     with pytest.raises(ConfigError, match=field):
         MocapConfig(**{field: value})
+
+
+def test_a_drop_is_the_fall_while_no_pad_touches_the_box():
+    """A one-cycle chatter of both pads is no drop; a box that falls free is, by its fall."""
+    t = np.arange(0.0, 1.0, 0.002)
+    heights = np.full(t.size, 0.32)
+    contact = t < 0.8
+    contact[100] = False
+    heights[400:] = 0.45
+    heights[450:] = 0.45 - (t[450:] - t[450]) * 0.5
+    data = {'t': t, 'object_position': np.column_stack((np.zeros(t.size), np.zeros(t.size),
+                                                        heights)),
+            'left_pad_contact': contact.copy(), 'right_pad_contact': contact.copy()}
+    assert premature_drop(data, 0.1, release_time=0.8) == (pytest.approx(t[100]), 0.0)
+    start, fall = premature_drop(data, 0.3, release_time=0.95)
+    assert start == pytest.approx(0.8)
+    assert fall == pytest.approx(0.45 - heights[-1])
+    assert premature_drop(data, 0.3, release_time=0.8) == (None, 0.0)

@@ -62,7 +62,9 @@ def test_a_shipped_scenario_runs_by_name_and_each_phase_is_echoed_as_it_happens(
     times = [float(match.group(1)) for _, match in phases]
     assert times == sorted(times) and 0.0 < times[0] < times[-1] <= 2.1
     events = {match.group(2): (match.group(3) or '').split(', ') for _, match in phases}
-    assert {'contact_left', 'contact_right'} <= set(events['contact'])
+    # The pad that touches second completes the grasp and the change to contact; the first
+    # touch, a tick or two earlier, is an event of the reach and changes no phase.
+    assert {'contact_left', 'contact_right'} & set(events['contact'])
     assert 'released' in events['release']
     assert all(match.group(4) for _, match in phases), 'each change says why'
     assert ended - phases[0][0] > LIVE_MARGIN, 'the first phase came only at the end'

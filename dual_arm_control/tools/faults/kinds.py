@@ -15,6 +15,7 @@ import json
 
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.exceptions import DualArmControlError
+from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.node_settings import FRI_PERIOD
 from dual_arm_control.tools.faults.graph_run import GraphRun
 from dual_arm_control.tools.faults.launcher_kill import kill_under_launcher
@@ -124,8 +125,12 @@ def _inprocess(kind, trial, fault_time, **mocap_fields):
     outcome.recovered = bool(metrics['success'])
     if not trial.nominal['success']:
         outcome.note = 'fault-free episode fails too'
+    release_time = trial.release_time
+    if metrics['t_release'] is not None:
+        own_release = EPISODE_START_TIME + metrics['t_release']
+        release_time = own_release if release_time is None else min(release_time, own_release)
     return fill_from_trajectory(outcome, trajectory, torque_limits(), fault_time=fault_time,
-                                release_time=trial.release_time)
+                                release_time=release_time)
 
 
 def malformed_burst(kind, trial):

@@ -79,7 +79,9 @@ def premature_drop(data, fault_time, release_time=None, tolerance=RELEASE_TOLERA
     """
     Return (time the held box left both pads early or None, height [m] it then fell).
 
-    Early: before release_time - tolerance [s] (None: any time after fault_time).
+    Early: before release_time - tolerance [s] (None: any time after fault_time). The fall is
+    measured while no pad touches the box: a pad touching it again (a grasp chattering for a
+    cycle after the impact) ends it, and each such interval counts on its own.
     """
     t = np.asarray(data['t'])
     held = np.logical_or.reduce([np.asarray(data[f'{arm}_pad_contact'], dtype=bool)
@@ -89,9 +91,18 @@ def premature_drop(data, fault_time, release_time=None, tolerance=RELEASE_TOLERA
         free &= t < release_time - tolerance
     if not free.any():
         return None, 0.0
-    start = int(np.argmax(free))
-    heights = np.asarray(data['object_position'])[start:, 2]
-    return float(t[start]), float(heights.max() - heights.min())
+    heights = np.asarray(data['object_position'])[:, 2]
+    first, worst, index = None, 0.0, int(np.argmax(free))
+    while index < len(t):
+        end = index + int(np.argmax(held[index:])) if held[index:].any() else len(t)
+        fall = float(heights[index:end].max() - heights[index:end].min())
+        first = float(t[index]) if first is None else first
+        worst = max(worst, fall)
+        later = free[end:]
+        if not later.any():
+            break
+        index = end + int(np.argmax(later))
+    return first, worst
 
 
 def was_held(data, t):
