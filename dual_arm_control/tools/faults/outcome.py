@@ -26,6 +26,8 @@ SETTLE_TIME = 0.3
 DROP_HEIGHT_LIMIT = 0.02
 # A release this much before the fault-free one is still on time [s].
 RELEASE_TOLERANCE = 0.02
+# Time [s] without any pad on the box after which it has left the pads.
+LEFT_PADS_TIME = 0.01
 
 
 @dataclass
@@ -79,9 +81,9 @@ def premature_drop(data, fault_time, release_time=None, tolerance=RELEASE_TOLERA
     """
     Return (time the held box left both pads early or None, height [m] it then fell).
 
-    Early: before release_time - tolerance [s] (None: any time after fault_time). The fall is
-    measured while no pad touches the box: a pad touching it again (a grasp chattering for a
-    cycle after the impact) ends it, and each such interval counts on its own.
+    Early: before release_time - tolerance [s] (None: any time after fault_time). Leaving
+    means no pad touching the box for at least LEFT_PADS_TIME: a grasp chattering off both
+    pads for a cycle after the impact has not let the box go.
     """
     t = np.asarray(data['t'])
     held = np.logical_or.reduce([np.asarray(data[f'{arm}_pad_contact'], dtype=bool)
@@ -89,20 +91,15 @@ def premature_drop(data, fault_time, release_time=None, tolerance=RELEASE_TOLERA
     free = (t >= fault_time - 1e-9) & ~held
     if release_time is not None:
         free &= t < release_time - tolerance
-    if not free.any():
-        return None, 0.0
-    heights = np.asarray(data['object_position'])[:, 2]
-    first, worst, index = None, 0.0, int(np.argmax(free))
-    while index < len(t):
-        end = index + int(np.argmax(held[index:])) if held[index:].any() else len(t)
-        fall = float(heights[index:end].max() - heights[index:end].min())
-        first = float(t[index]) if first is None else first
-        worst = max(worst, fall)
-        later = free[end:]
-        if not later.any():
-            break
-        index = end + int(np.argmax(later))
-    return first, worst
+    index = 0
+    while free[index:].any():
+        start = index + int(np.argmax(free[index:]))
+        end = start + int(np.argmin(free[start:])) if not free[start:].all() else len(t)
+        if t[end - 1] - t[start] >= LEFT_PADS_TIME - 1e-9 or end == len(t):
+            heights = np.asarray(data['object_position'])[start:, 2]
+            return float(t[start]), float(heights.max() - heights.min())
+        index = end
+    return None, 0.0
 
 
 def was_held(data, t):
