@@ -16,7 +16,7 @@ meet their faces several degrees off flush, one corner first.
 import math
 from typing import NamedTuple
 
-from dual_arm_control.core.geometry import skew, slerp_rotation, unit
+from dual_arm_control.core.geometry import rotation_exp, unit
 import numpy as np
 
 # Fractions of the turn from the preferred direction toward the clearest one tried, in order.
@@ -89,21 +89,13 @@ def elbow_clear_direction(direction, normal, max_tilt, reach, p_world_grasp, R_w
                            run_in) >= required - 1e-9:
         return direction
     clearest = clearest_direction(reach, p_world_grasp, R_world_grasp, normal, max_tilt)
-    turn = _rotation_between(direction, clearest)
+    axis = np.cross(direction, clearest)
+    sine = float(np.linalg.norm(axis))
+    turn = (math.atan2(sine, float(direction @ clearest)) / sine * axis if sine > 1e-12
+            else np.zeros(3))
     for step in range(1, _TURN_STEPS + 1):
-        candidate = slerp_rotation(np.eye(3), turn, step / _TURN_STEPS) @ direction
+        candidate = rotation_exp(step / _TURN_STEPS * turn) @ direction
         if run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, candidate,
                                run_in) >= required - 1e-9:
             return candidate
     return clearest
-
-
-def _rotation_between(start, end):
-    """Return the shortest rotation (3, 3) taking unit vector start to unit vector end."""
-    axis = np.cross(start, end)
-    sine = float(np.linalg.norm(axis))
-    cosine = float(start @ end)
-    if sine < 1e-12:
-        return np.eye(3)
-    cross = skew(axis / sine)
-    return np.eye(3) + sine * cross + (1.0 - cosine) * cross @ cross

@@ -57,9 +57,11 @@ def _vector(value):
     return None if value is None else [float(v) for v in value]
 
 
-def _contact_directions(scenario, cell):
+def _contact_directions(scenario, cell, models):
     """
     Return ({arm: inward face normal}, {arm: desired impact direction}) at the initial pose.
+
+    models: {arm: ArmModel} of the cell.
 
     The impact directions are the motion generator's own (the normal tilted toward the task's
     object motion, turned to keep the run-in within the elbow's reach), computed with the
@@ -76,7 +78,7 @@ def _contact_directions(scenario, cell):
             impact_directions(config, frames, motion,
                               support_height_below(config, scenario.object.position),
                               elbow_reaches=None if scenario.incoming_belt is not None
-                              else {arm: arm_model(arm, cell).elbow_reach() for arm in ARMS}))
+                              else {arm: models[arm].elbow_reach() for arm in ARMS}))
 
 
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
@@ -84,7 +86,8 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
     t = data['t'] - start_time
     result = dict.fromkeys(METRIC_KEYS + ('landing_prediction_error', 'place_speed'))
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
-    normals, directions = _contact_directions(scenario, cell)
+    models = {arm: arm_model(arm, cell) for arm in ARMS}
+    normals, directions = _contact_directions(scenario, cell, models)
     for arm in ARMS:
         velocity = data[f'{arm}_tool_velocity']
         result[f't_contact_{arm}'] = _time(t, contact_index[arm])
@@ -157,7 +160,7 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
                                axis=1)
         result[f'max_tool_drift_{arm}'] = float(drift.max())
         ratio, time_above, _ = metrics.joint_speed_ratio(
-            t, data[f'{arm}_dq'], arm_model(arm, cell).velocity_limits)
+            t, data[f'{arm}_dq'], models[arm].velocity_limits)
         result[f'max_joint_speed_ratio_{arm}'] = ratio
         result[f'joint_speed_limit_time_{arm}'] = time_above
     for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):

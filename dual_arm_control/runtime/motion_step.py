@@ -86,6 +86,7 @@ class MotionGeneratorStep:
         self._initial_config = config
         self.controllers = ControllerWatch(round(controller_timeout * 1e9))
         self._models = models
+        self._elbow_reaches = {arm: models[arm].elbow_reach() for arm in ARMS}
         self._ds_period = ds_period
         self._auto_start_ns = int(auto_start_ns)
         self.refusals = RefusalCounter(on_refusal)
@@ -96,7 +97,7 @@ class MotionGeneratorStep:
 
     def _start_over(self, config):
         self._generator = DualArmMotionGenerator(config)
-        self._generator.set_elbow_reaches({arm: self._models[arm].elbow_reach() for arm in ARMS})
+        self._generator.set_elbow_reaches(self._elbow_reaches)
         self._schedule = TickSchedule(self._ds_period)
         self._started = self._auto_start_ns == 0
         self._requests = dict.fromkeys(COMMANDS, False)
