@@ -16,7 +16,7 @@ update rate.
 from dataclasses import dataclass
 
 from dual_arm_control.core.exceptions import InputError
-from dual_arm_control.core.geometry import cross3
+from dual_arm_control.core.geometry import cross3, vector_norm
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import check_range, finite_array
 import numpy as np
@@ -112,7 +112,7 @@ def contact_geometry(p_world_tool, R_world_tool, p_world_grasp, n_world_grasp, c
     R_world_tool = finite_array('R_world_tool', R_world_tool, (3, 3))
     p_world_grasp = finite_array('p_world_grasp', p_world_grasp, (3,))
     n_world_grasp = finite_array('n_world_grasp', n_world_grasp, (3,))
-    norm = np.linalg.norm(n_world_grasp)
+    norm = vector_norm(n_world_grasp)
     if norm < 1e-9:
         raise InputError('n_world_grasp has no direction')
     p_world_offset = p_world_grasp - p_world_tool
@@ -169,7 +169,7 @@ class ContactDetector:
                                     self._config)
         n_world = np.asarray(n_world_grasp, dtype=float)
         normal_force = float(self._normal_force.update(
-            f_world_pad @ n_world / np.linalg.norm(n_world), dt))
+            f_world_pad @ n_world / vector_norm(n_world), dt))
         if self._force_contact:
             release_level = self._config.force_threshold - self._config.force_hysteresis
             self._force_contact = normal_force > release_level

@@ -11,11 +11,13 @@ import numpy as np
 
 
 _SMALL_ANGLE = 1e-9
+_IDENTITY = np.eye(3)
+_IDENTITY.setflags(write=False)
 
 
 def skew(vector):
     """Return the (3, 3) skew-symmetric matrix [v]x such that [v]x @ u = v x u."""
-    x, y, z = vector
+    x, y, z = np.asarray(vector, dtype=float).tolist()
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
@@ -26,10 +28,21 @@ def cross3(a, b):
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
+def vector_norm(vector):
+    """
+    Return the Euclidean norm of a float array (its entries as one vector) as a float.
+
+    The same number np.linalg.norm returns (the square root of the flat array's dot product with
+    itself), without its dispatch: the per-tick code takes many norms of 3-vectors.
+    """
+    flat = vector.ravel(order='K')
+    return math.sqrt(flat.dot(flat))
+
+
 def unit(vector, name='vector'):
     """Return vector / ||vector||; raise InputError for a (near) zero vector."""
     vector = np.asarray(vector, dtype=float)
-    norm = np.linalg.norm(vector)
+    norm = vector_norm(vector)
     if not np.isfinite(norm) or norm < 1e-12:
         raise InputError(f'{name} has no direction (norm {norm:g})')
     return vector / norm
@@ -96,7 +109,7 @@ def matrix_to_quat_xyzw(rotation):
         quat[j] = (r[j, i] + r[i, j]) / s
         quat[k] = (r[k, i] + r[i, k]) / s
         quat[3] = (r[k, j] - r[j, k]) / s
-    quat /= np.linalg.norm(quat)
+    quat /= vector_norm(quat)
     return quat if quat[3] >= 0.0 else -quat
 
 
@@ -122,11 +135,11 @@ def rotation_log(rotation):
 def rotation_exp(rotation_vector):
     """Return the rotation matrix of a rotation vector theta * mu (SO(3) exponential)."""
     rotation_vector = np.asarray(rotation_vector, dtype=float)
-    theta = np.linalg.norm(rotation_vector)
+    theta = vector_norm(rotation_vector)
     k = skew(rotation_vector)
     if theta < _SMALL_ANGLE:
-        return np.eye(3) + k
-    return (np.eye(3) + np.sin(theta) / theta * k
+        return _IDENTITY + k
+    return (_IDENTITY + np.sin(theta) / theta * k
             + (1.0 - np.cos(theta)) / theta ** 2 * k @ k)
 
 

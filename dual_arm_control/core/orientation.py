@@ -20,9 +20,10 @@ the absolute position error shrinks, R_*(eta) = slerp(R_rest, R_desired, eta).
 """
 
 from dataclasses import dataclass
+import functools
 
 from dual_arm_control.core.exceptions import InputError
-from dual_arm_control.core.geometry import rotation_log, skew, slerp_rotation
+from dual_arm_control.core.geometry import rotation_log, skew, slerp_rotation, vector_norm
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import finite_array
 import numpy as np
@@ -54,7 +55,15 @@ class OrientationDsConfig:
     @property
     def dynamics_matrix(self):
         """Return A_theta = -diag(convergence_rates), (3, 3), 1/s, negative definite."""
-        return -np.diag(self.convergence_rates)
+        return _dynamics_matrix(tuple(self.convergence_rates)).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _dynamics_matrix(convergence_rates):
+    """Return A_theta = -diag(convergence_rates) (3, 3), read-only, built once per rates."""
+    matrix = -np.diag(convergence_rates)
+    matrix.setflags(write=False)
+    return matrix
 
 
 def orientation_error(R_world_target, R_world_current):
@@ -96,7 +105,7 @@ def theta_mu_interaction_matrix(theta, mu):
 
 def _angle_axis(xi):
     """Split a rotation vector into (theta, unit axis); the axis is arbitrary at theta = 0."""
-    theta = float(np.linalg.norm(xi))
+    theta = vector_norm(xi)
     if theta == 0.0:
         return 0.0, np.array([1.0, 0.0, 0.0])
     return theta, xi / theta
@@ -123,7 +132,13 @@ def orientation_error_jacobian_inverse(R_world_target, R_world_current):
     every theta in [0, pi], so the DS has no singularity on its domain.
     """
     R_world_target = finite_array('R_world_target', R_world_target, (3, 3))
-    theta, mu = _angle_axis(orientation_error(R_world_target, R_world_current))
+    return _error_jacobian_inverse(R_world_target,
+                                   orientation_error(R_world_target, R_world_current))
+
+
+def _error_jacobian_inverse(R_world_target, xi):
+    """Return L_xi^-1 (3, 3) of orientation_error_jacobian_inverse from its error xi (3,)."""
+    theta, mu = _angle_axis(xi)
     mu_cross = skew(mu)
     if theta < _SERIES_ANGLE:
         first = 0.5 * theta - theta ** 3 / 24.0
@@ -137,7 +152,7 @@ def orientation_error_jacobian_inverse(R_world_target, R_world_current):
 def saturated_angular_velocity(omega, max_angular_speed):
     """Return omega (3,) scaled down so that ||omega|| <= max_angular_speed (rad/s)."""
     omega = np.asarray(omega, dtype=float)
-    speed = np.linalg.norm(omega)
+    speed = vector_norm(omega)
     if speed > max_angular_speed:
         return omega * (max_angular_speed / speed)
     return omega
@@ -151,9 +166,10 @@ def orientation_ds_angular_velocity(R_world_current, R_world_target, config):
     is below config.max_angular_speed, and a uniformly scaled A_theta xi when saturated, so the
     orientation converges to R_world_target from any start with theta < pi.
     """
+    R_world_target = finite_array('R_world_target', R_world_target, (3, 3))
     xi = orientation_error(R_world_target, R_world_current)
-    omega = (orientation_error_jacobian_inverse(R_world_target, R_world_current)
-             @ config.dynamics_matrix @ xi)
+    omega = (_error_jacobian_inverse(R_world_target, xi)
+             @ _dynamics_matrix(tuple(config.convergence_rates)) @ xi)
     return saturated_angular_velocity(omega, config.max_angular_speed)
 
 
@@ -166,7 +182,7 @@ def orientation_coupling(p_world_abs, p_world_abs_desired, config):
     """
     p_world_abs = finite_array('p_world_abs', p_world_abs, (3,))
     p_world_abs_desired = finite_array('p_world_abs_desired', p_world_abs_desired, (3,))
-    distance = float(np.linalg.norm(p_world_abs - p_world_abs_desired))
+    distance = vector_norm(p_world_abs - p_world_abs_desired)
     return 1.0 - np.exp(-config.coupling_sigma / (distance + config.coupling_epsilon))
 
 
