@@ -16,7 +16,7 @@ meet their faces several degrees off flush, one corner first.
 import math
 from typing import NamedTuple
 
-from dual_arm_control.core.geometry import rotation_exp, unit
+from dual_arm_control.core.geometry import cross3, rotation_exp, unit, vector_norm
 import numpy as np
 
 # Fractions of the turn from the preferred direction toward the clearest one tried, in order.
@@ -48,10 +48,14 @@ def run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, direction, run_in):
     direction (3,), unit, so the wrist goes through w(s) = w_d - s e1 relative to the shoulder;
     r is min_wrist_distance. |w(s)| is least at s = clip(w_d . e1, 0, run_in).
     """
-    wrist = wrist_offset(reach, p_world_grasp, R_world_grasp)
-    direction = np.asarray(direction, dtype=float)
+    return _run_in_margin(reach, wrist_offset(reach, p_world_grasp, R_world_grasp),
+                          np.asarray(direction, dtype=float), run_in)
+
+
+def _run_in_margin(reach, wrist, direction, run_in):
+    """Return run_in_elbow_margin from the wrist's offset w_d (3,) at the grasp pose."""
     nearest = min(max(float(wrist @ direction), 0.0), run_in)
-    return float(np.linalg.norm(wrist - nearest * direction)) - reach.min_wrist_distance
+    return vector_norm(wrist - nearest * direction) - reach.min_wrist_distance
 
 
 def clearest_direction(reach, p_world_grasp, R_world_grasp, normal, max_tilt):
@@ -62,10 +66,15 @@ def clearest_direction(reach, p_world_grasp, R_world_grasp, normal, max_tilt):
     normal tilted fully away from the wrist's offset w_d, which minimises w_d . e1 over the cone
     and with it how far the run-in draws the wrist in.
     """
+    return _clearest_direction(wrist_offset(reach, p_world_grasp, R_world_grasp), normal,
+                               max_tilt)
+
+
+def _clearest_direction(wrist, normal, max_tilt):
+    """Return clearest_direction from the wrist's offset w_d (3,) at the grasp pose."""
     normal = unit(normal, 'normal')
-    wrist = wrist_offset(reach, p_world_grasp, R_world_grasp)
     tangential = wrist - (wrist @ normal) * normal
-    length = float(np.linalg.norm(tangential))
+    length = vector_norm(tangential)
     if length < 1e-9:
         return normal
     return math.cos(max_tilt) * normal - math.sin(max_tilt) / length * tangential
@@ -83,19 +92,18 @@ def elbow_clear_direction(direction, normal, max_tilt, reach, p_world_grasp, R_w
     clears, or all the way.
     """
     direction = unit(direction, 'direction')
-    grasp_margin = run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, direction, 0.0)
+    wrist = wrist_offset(reach, p_world_grasp, R_world_grasp)
+    grasp_margin = _run_in_margin(reach, wrist, direction, 0.0)
     required = min(clearance, grasp_margin)
-    if run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, direction,
-                           run_in) >= required - 1e-9:
+    if _run_in_margin(reach, wrist, direction, run_in) >= required - 1e-9:
         return direction
-    clearest = clearest_direction(reach, p_world_grasp, R_world_grasp, normal, max_tilt)
-    axis = np.cross(direction, clearest)
-    sine = float(np.linalg.norm(axis))
+    clearest = _clearest_direction(wrist, normal, max_tilt)
+    axis = cross3(direction, clearest)
+    sine = vector_norm(axis)
     turn = (math.atan2(sine, float(direction @ clearest)) / sine * axis if sine > 1e-12
             else np.zeros(3))
     for step in range(1, _TURN_STEPS + 1):
         candidate = rotation_exp(step / _TURN_STEPS * turn) @ direction
-        if run_in_elbow_margin(reach, p_world_grasp, R_world_grasp, candidate,
-                               run_in) >= required - 1e-9:
+        if _run_in_margin(reach, wrist, candidate, run_in) >= required - 1e-9:
             return candidate
     return clearest

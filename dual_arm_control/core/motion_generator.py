@@ -12,6 +12,7 @@ living arm against the held one and its wrench QP share, otherwise the tools hol
 """
 
 from dataclasses import replace
+import functools
 
 from dual_arm_control.core.approach import (impact_directions, support_height_below,
                                             synchronised_arrival, TOSS_TASKS,
@@ -26,7 +27,7 @@ from dual_arm_control.core.manipulation import (cooperative_manipulation_velocit
                                                 object_orientation_ds, place_velocity,
                                                 release_rotation, release_velocity,
                                                 toss_geometry, toss_velocity)
-from dual_arm_control.core.motion_signals import ArmCommand, MotionOutput
+from dual_arm_control.core.motion_signals import ArmCommand, DeferredMapping, MotionOutput
 from dual_arm_control.core.moving_grab import (belt_feed_forward, decayed_belt_velocity,
                                                filtered_belt_velocity)
 from dual_arm_control.core.orientation import (intermediate_target_orientation,
@@ -160,9 +161,9 @@ class DualArmMotionGenerator:
         object_velocity = self._object_velocity(p_object, v_object, phase, dt)
         omega_object = self._object_angular_velocity(R_object, phase)
         elbow_reaches = None if config.moving_grab.enabled else self._elbow_reaches
-        directions = impact_directions(config, frames, object_velocity,
-                                       support_height_below(config, p_object), self._grasp_roll,
-                                       elbow_reaches)
+        directions = DeferredMapping(functools.partial(
+            impact_directions, config, frames, object_velocity,
+            support_height_below(config, p_object), self._grasp_roll, elbow_reaches))
         if phase is Phase.REACH:
             commands = self._reach(p_tools, R_tools, frames, directions, dt)
             commands = yield_to_single_contact(commands, contacts, frames)

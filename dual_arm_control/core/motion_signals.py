@@ -4,6 +4,7 @@ What the motion generator takes and returns each DS tick: arm and object measure
 Plain frozen records, so the runtime and the tests build them without the generator's state.
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,34 @@ class ArmCommand:
     p_world_attractor: np.ndarray
 
 
+class DeferredMapping(Mapping):
+    """
+    A read-only mapping whose items compute() returns as a dict, called at the first look-up.
+
+    For outputs of a tick that only some ticks and consumers use (the impact directions outside
+    the reach feed only the markers): they cost nothing until read, and read the same.
+    """
+
+    def __init__(self, compute):
+        self._compute = compute
+        self._items = None
+
+    def _computed(self):
+        if self._items is None:
+            self._items = self._compute()
+            self._compute = None
+        return self._items
+
+    def __getitem__(self, key):
+        return self._computed()[key]
+
+    def __iter__(self):
+        return iter(self._computed())
+
+    def __len__(self):
+        return len(self._computed())
+
+
 @dataclass(frozen=True)
 class MotionOutput:
     """
@@ -57,7 +86,7 @@ class MotionOutput:
     Fields: phase (PhaseMachineOutput); commands {arm: ArmCommand}; object_velocity (3,) m/s and
     object_angular_velocity (3,) rad/s, the desired object twist; contacts {arm: ContactState};
     pad_forces {arm: (3,) N, compensated force of the pad on the object, world}; grasp_frames
-    {arm: GraspFrame}; impact_directions {arm: (3,)}; release_position (3,) m and
+    {arm: GraspFrame}; impact_directions {arm: (3,)} (a mapping); release_position (3,) m and
     release_velocity (3,) m/s of toss tasks (None otherwise).
     """
 
@@ -68,6 +97,6 @@ class MotionOutput:
     contacts: dict
     pad_forces: dict
     grasp_frames: dict
-    impact_directions: dict
+    impact_directions: Mapping
     release_position: object
     release_velocity: object
