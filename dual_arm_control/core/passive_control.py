@@ -30,7 +30,7 @@ import math
 
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import rotation_log
-from dual_arm_control.core.reachability import inverse_kinematics_step, pose_error
+from dual_arm_control.core.reachability import inverse_kinematics_step, tool_pose_error
 from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
@@ -263,6 +263,7 @@ class PassiveController:
         self._hold_damping = np.array(self.config.hold_damping)
         self._velocity_limits = np.asarray(model.velocity_limits, dtype=float).copy()
         self._armature = np.asarray(model.armature, dtype=float).copy()
+        self._position_limits = model.position_limits
         self._regulariser = self.config.projector_damping ** 2 * np.eye(6)
         self.q_null = None
         self.set_null_space_posture(q_null)
@@ -290,10 +291,11 @@ class PassiveController:
         """
         if self.config.posture_tracking_step <= 0.0:
             return
-        lower, upper = self.model.position_limits
-        error = pose_error(self.model, self.q_null, p_world_target, R_world_target)
-        posture = inverse_kinematics_step(self.model, np.array(self.q_null), error, lower, upper,
-                                          _POSTURE_IK_DAMPING, self.config.posture_tracking_step)
+        p_world_tool, R_world_tool, jacobian = self.model.tool_pose_and_jacobian(self.q_null)
+        error = tool_pose_error(p_world_tool, R_world_tool, p_world_target, R_world_target)
+        posture = inverse_kinematics_step(self.model, np.array(self.q_null), error,
+                                          *self._position_limits, _POSTURE_IK_DAMPING,
+                                          self.config.posture_tracking_step, jacobian)
         posture.flags.writeable = False
         self.q_null = posture
 
@@ -339,8 +341,7 @@ class PassiveController:
             bad = [name for array, name in zip(inputs, _INPUT_NAMES)
                    if not np.isfinite(array).all()]
             return self._hold(dq, 'non-finite ' + ', '.join(bad))
-        _, R_world_tool = self.model.tool_pose(q)
-        jacobian = self.model.tool_jacobian(q)
+        _, R_world_tool, jacobian = self.model.tool_pose_and_jacobian(q)
         twist = jacobian @ dq
         config = self.config
         self.touched = self.touched or bool(contact_wrench.any())

@@ -14,13 +14,15 @@ from dataclasses import dataclass
 import math
 
 from dual_arm_control.core.arms import ARMS
-from dual_arm_control.core.geometry import rotation_log
+from dual_arm_control.core.geometry import rotation_log, vector_norm
 from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
 from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
 # Pad rolls about the face normal [rad] the grasp planner tries, in order of preference.
 PAD_ROLLS = (0.0, 0.5 * math.pi, -0.5 * math.pi)
+_IDENTITY_6 = np.eye(6)
+_IDENTITY_6.setflags(write=False)
 
 
 @dataclass(frozen=True)
@@ -90,20 +92,27 @@ class GraspPlan:
 def pose_error(model, q, p_world_target, R_world_target):
     """Return the tool's pose error (6,) [m, rad] at q: [p_target - p; log(R_target R^T)]."""
     p_world_tool, R_world_tool = model.tool_pose(q)
+    return tool_pose_error(p_world_tool, R_world_tool, p_world_target, R_world_target)
+
+
+def tool_pose_error(p_world_tool, R_world_tool, p_world_target, R_world_target):
+    """Return the pose error (6,) [m, rad] of a tool pose: [p_target - p; log(R_target R^T)]."""
     return np.concatenate((p_world_target - p_world_tool,
                            rotation_log(R_world_target @ R_world_tool.T)))
 
 
-def inverse_kinematics_step(model, q, error, lower, upper, damping, max_step):
+def inverse_kinematics_step(model, q, error, lower, upper, damping, max_step, jacobian=None):
     """
     Return q (7,) after one damped least-squares step toward a pose error (6,) within bounds.
 
     A joint on a bound that the step would push further is taken out of the Jacobian and the
     step recomputed with the others (an active set), so the remaining joints make up for it
     instead of the solve stalling against the bound; the step's norm is capped at max_step.
+    jacobian: the tool Jacobian at q when the caller has it.
     """
-    jacobian = model.tool_jacobian(q)
-    regulariser = damping * np.eye(6)
+    if jacobian is None:
+        jacobian = model.tool_jacobian(q)
+    regulariser = damping * _IDENTITY_6
     free = np.ones(q.size, dtype=bool)
     for _ in range(q.size):
         active = jacobian * free
@@ -112,7 +121,7 @@ def inverse_kinematics_step(model, q, error, lower, upper, damping, max_step):
         if not blocked.any():
             break
         free &= ~blocked
-    norm = float(np.linalg.norm(step))
+    norm = vector_norm(step)
     if norm > max_step:
         step *= max_step / norm
     return np.clip(q + step, lower, upper)

@@ -133,6 +133,23 @@ class ArmModel:
         """Return (p_world_tool (3,) [m], R_world_tool (3, 3)) at joint positions q [rad]."""
         return self._frame_pose(q, self._tool_id)
 
+    def tool_and_sensor_poses(self, q):
+        """Return ((p_world_tool, R_world_tool), (p_world_sensor, R_world_sensor)) in one pass."""
+        tool = self._frame_pose(q, self._tool_id)
+        sensor = pin.updateFramePlacement(self.model, self.data, self._sensor_id)
+        return tool, (sensor.translation.copy(), sensor.rotation.copy())
+
+    def tool_pose_and_jacobian(self, q):
+        """
+        Return (p_world_tool, R_world_tool, tool Jacobian (6, 7)) from one kinematics pass.
+
+        The same numbers as tool_pose and tool_jacobian, which each run the kinematics anew.
+        """
+        jacobian = pin.computeFrameJacobian(self.model, self.data, self._q(q), self._tool_id,
+                                            pin.LOCAL_WORLD_ALIGNED).copy()
+        placement = self.data.oMf[self._tool_id]
+        return placement.translation.copy(), placement.rotation.copy(), jacobian
+
     def flange_pose(self, q):
         """Return (p_world_flange (3,) [m], R_world_flange (3, 3))."""
         return self._frame_pose(q, self._flange_id)

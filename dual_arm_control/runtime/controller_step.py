@@ -119,9 +119,10 @@ class ControllerStep:
             self.counters['stale_contact_wrench'] += 1
         else:
             contact_wrench = self._wrench.wrench
-        self._controller.track_posture(command.p_world_attractor, command.R_world_desired)
+        R_world_desired = command.R_world_desired
+        self._controller.track_posture(command.p_world_attractor, R_world_desired)
         result = self._controller.torque_command(q, dq, command.v_world, command.w_world,
-                                                 command.R_world_desired, contact_wrench)
+                                                 R_world_desired, contact_wrench)
         self.counters['holds_by_controller'] += int(result.held)
         self.counters['saturated'] += int(result.saturated)
         return result.torque

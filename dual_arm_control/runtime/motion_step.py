@@ -193,8 +193,8 @@ class MotionGeneratorStep:
         arms = {}
         for arm in ARMS:
             q = joints[arm].position
-            p_world_tool, R_world_tool = self._models[arm].tool_pose(q)
-            _, R_world_sensor = self._models[arm].sensor_pose(q)
+            (p_world_tool, R_world_tool), (_, R_world_sensor) = (
+                self._models[arm].tool_and_sensor_poses(q))
             arms[arm] = ArmMeasurement(p_world_tool, R_world_tool, ft_wrenches[arm].wrench,
                                        R_world_sensor)
         has_object = estimate is not None and estimate.valid
