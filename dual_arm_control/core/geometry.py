@@ -39,6 +39,16 @@ def vector_norm(vector):
     return math.sqrt(flat.dot(flat))
 
 
+def last_axis_norms(vectors):
+    """
+    Return the norms (..., 1) of a float array's vectors along its last axis.
+
+    np.linalg.norm(vectors, axis=-1, keepdims=True), computed as it computes it (the square
+    root of the summed squares), without its dispatch.
+    """
+    return np.sqrt(np.add.reduce(vectors * vectors, axis=-1, keepdims=True))
+
+
 def unit(vector, name='vector'):
     """Return vector / ||vector||; raise InputError for a (near) zero vector."""
     vector = np.asarray(vector, dtype=float)
@@ -95,7 +105,7 @@ def matrix_to_rpy(rotation):
 def matrix_to_quat_xyzw(rotation):
     """Return the unit quaternion (x, y, z, w) with w >= 0 of a rotation matrix."""
     r = np.asarray(rotation, dtype=float)
-    trace = np.trace(r)
+    trace = r.trace()
     if trace > 0.0:
         s = 2.0 * np.sqrt(trace + 1.0)
         quat = np.array([(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import math
 
 from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.geometry import last_axis_norms
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import check_range
 import numpy as np
@@ -70,7 +71,7 @@ def boosted_velocity(velocity, speed):
     For one arm or the object. Where the DS output vanishes, zero is returned.
     """
     velocity = np.asarray(velocity, dtype=float)
-    norm = np.linalg.norm(velocity, axis=-1, keepdims=True)
+    norm = last_axis_norms(velocity)
     return np.where(norm > _MIN_SPEED, velocity * (np.asarray(speed)[..., None]
                                                    / np.maximum(norm, _MIN_SPEED)), 0.0)
 
@@ -94,7 +95,7 @@ def boosted_coordinated_velocity(velocity, speed):
 def saturated_velocity(velocity, max_speed):
     """Return velocity (..., 3) rescaled per point to at most max_speed [m/s]."""
     velocity = np.asarray(velocity, dtype=float)
-    norm = np.linalg.norm(velocity, axis=-1, keepdims=True)
+    norm = last_axis_norms(velocity)
     return velocity * np.minimum(1.0, max_speed / np.maximum(norm, _MIN_SPEED))
 
 

@@ -287,12 +287,12 @@ class ObjectTracker:
         if self._is_lost(t):
             return (self._position.copy(), matrix_to_quat_xyzw(self._R_world_object),
                     np.zeros(3), np.zeros(3))
-        position, velocity, _, R_world_object = self._mean_prediction(t)
+        position, velocity, _, _, R_world_object = self._mean_prediction(t)
         return (position, matrix_to_quat_xyzw(R_world_object), velocity,
                 self._angular_velocity.copy())
 
     def _mean_prediction(self, t):
-        """Return (position, velocity, rotation increment, R_world_object) predicted to t."""
+        """Return (position, velocity, rotation increment, its rotation, R_world_object) at t."""
         dt = t - self._posterior_stamp
         gravity_displacement, gravity_velocity = self._gravity_effect(self._posterior_stamp, t)
         position = self._position + self._velocity * dt
@@ -301,18 +301,18 @@ class ObjectTracker:
         velocity[2] += gravity_velocity
         rotation_increment = self._angular_velocity * dt
         rotation_transition = rotation_exp(rotation_increment)
-        return (position, velocity, rotation_increment,
+        return (position, velocity, rotation_increment, rotation_transition,
                 rotation_transition @ self._R_world_object)
 
     def _prediction(self, t):
         """Return the prior mean and covariances propagated from the posterior to time t."""
         dt = t - self._posterior_stamp
-        position, velocity, rotation_increment, R_world_object = self._mean_prediction(t)
+        position, velocity, rotation_increment, rotation_transition, R_world_object = (
+            self._mean_prediction(t))
         transition = np.array([[1.0, dt], [0.0, 1.0]])
         covariance_position = (transition @ self._covariance_position @ transition.T
                                + white_acceleration_noise(self._q_position, dt))
 
-        rotation_transition = rotation_exp(rotation_increment)
         F = _IDENTITY_6.copy()
         F[:3, :3] = rotation_transition
         F[:3, 3:] = dt * left_jacobian_so3(rotation_increment)
