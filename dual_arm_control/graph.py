@@ -45,22 +45,26 @@ ROBOT_PRIORITY, CONTROLLER_PRIORITY, PLANNER_PRIORITY = 40, 35, 20
 
 
 def full_graph():
-    """Return the product graph: bridge, tracker, DS, wrench QP and one controller per arm."""
-    sim_time = {'use_sim_time': True}
+    """
+    Return the product graph: bridge, tracker, DS, wrench QP and one controller per arm.
+
+    The control nodes stamp every output with the stamp of the cycle it answers and never read
+    their node clock, so they run without use_sim_time: its time source would take /clock at
+    the FRI rate in each of them for nothing (about 7 % of the graph's CPU in lockstep).
+    """
     nodes = [
         NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',),
                  parameters={'lockstep_wait_for_tracker': True},
                  realtime_priority=ROBOT_PRIORITY),
-        NodeSpec('object_tracker', 'object_tracker', parameters=sim_time,
-                 param_files=('object_tracker.yaml',), realtime_priority=PLANNER_PRIORITY),
-        NodeSpec('ds_motion_generator', 'ds_motion_generator', parameters=sim_time,
+        NodeSpec('object_tracker', 'object_tracker', param_files=('object_tracker.yaml',),
                  realtime_priority=PLANNER_PRIORITY),
-        NodeSpec('wrench_qp', 'wrench_qp', parameters=sim_time, param_files=('wrench_qp.yaml',),
+        NodeSpec('ds_motion_generator', 'ds_motion_generator', realtime_priority=PLANNER_PRIORITY),
+        NodeSpec('wrench_qp', 'wrench_qp', param_files=('wrench_qp.yaml',),
                  realtime_priority=PLANNER_PRIORITY),
     ]
     for arm in ARMS:
         nodes.append(NodeSpec('passive_controller', 'passive_controller', f'/{arm}',
-                              dict(sim_time, arm=arm), ('passive_controller.yaml',),
+                              {'arm': arm}, ('passive_controller.yaml',),
                               realtime_priority=CONTROLLER_PRIORITY))
     return tuple(nodes) + (cell_state_publisher(),)
 
