@@ -113,18 +113,20 @@ def inverse_kinematics_step(model, q, error, lower, upper, damping, max_step, ja
     if jacobian is None:
         jacobian = model.tool_jacobian(q)
     regulariser = damping * _IDENTITY_6
-    free = np.ones(q.size, dtype=bool)
+    free = None
     for _ in range(q.size):
-        active = jacobian * free
+        active = jacobian if free is None else jacobian * free
         step = active.T @ np.linalg.solve(active @ active.T + regulariser, error)
-        blocked = free & (((q <= lower) & (step < 0.0)) | ((q >= upper) & (step > 0.0)))
+        blocked = ((q <= lower) & (step < 0.0)) | ((q >= upper) & (step > 0.0))
+        if free is not None:
+            blocked &= free
         if not blocked.any():
             break
-        free &= ~blocked
+        free = ~blocked if free is None else free & ~blocked
     norm = vector_norm(step)
     if norm > max_step:
         step *= max_step / norm
-    return np.clip(q + step, lower, upper)
+    return np.minimum(np.maximum(q + step, lower), upper)
 
 
 def inverse_kinematics(model, p_world_target, R_world_target, q_start, config):
