@@ -74,7 +74,7 @@ def orthonormal_basis(first_axis):
 
 def quat_xyzw_to_matrix(quat_xyzw):
     """Return the rotation matrix of a (possibly unnormalised) quaternion (x, y, z, w)."""
-    x, y, z, w = unit(quat_xyzw, 'quaternion')
+    x, y, z, w = unit(quat_xyzw, 'quaternion').tolist()
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
@@ -105,11 +105,11 @@ def matrix_to_rpy(rotation):
 def matrix_to_quat_xyzw(rotation):
     """Return the unit quaternion (x, y, z, w) with w >= 0 of a rotation matrix."""
     r = np.asarray(rotation, dtype=float)
-    trace = r.trace()
+    trace = float(r.trace())
     if trace > 0.0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        quat = np.array([(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,
-                         (r[1, 0] - r[0, 1]) / s, 0.25 * s])
+        (_, r01, r02), (r10, _, r12), (r20, r21, _) = r.tolist()
+        s = 2.0 * math.sqrt(trace + 1.0)
+        quat = np.array([(r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s, 0.25 * s])
     else:
         i = int(np.argmax(np.diag(r)))
         j, k = (i + 1) % 3, (i + 2) % 3

@@ -32,6 +32,7 @@ from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.reachability import inverse_kinematics_step, tool_pose_error
 from dual_arm_control.core.settings import check_settings, setting
+from dual_arm_control.core.validation import all_finite
 import numpy as np
 
 
@@ -333,11 +334,11 @@ class PassiveController:
         for array, shape, name in zip(inputs, _INPUT_SHAPES, _INPUT_NAMES):
             if array.shape != shape:
                 raise InputError(f'{name} must have shape {shape}, got {array.shape}')
-        if np.isfinite(q).all():
+        if all_finite(q):
             gravity = self.model.gravity_torque(q)
-            if np.isfinite(gravity).all():
+            if all_finite(gravity):
                 self.last_gravity_torque = gravity
-        if not np.isfinite(np.concatenate([a.ravel() for a in inputs])).all():
+        if not all_finite(np.concatenate([a.ravel() for a in inputs])):
             bad = [name for array, name in zip(inputs, _INPUT_NAMES)
                    if not np.isfinite(array).all()]
             return self._hold(dq, 'non-finite ' + ', '.join(bad))
@@ -360,7 +361,7 @@ class PassiveController:
                                               self.config.joint_speed_brake_time))
         torque, saturated = saturated_torque(self.last_gravity_torque, control,
                                              self._torque_limits)
-        if not np.isfinite(torque).all():
+        if not all_finite(torque):
             return self._hold(dq, 'non-finite control torque')
         return TorqueCommand(torque=torque, task_wrench=task_wrench, saturated=saturated,
                              held=False, status='saturated' if saturated else 'ok')

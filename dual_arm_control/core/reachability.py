@@ -113,11 +113,15 @@ def inverse_kinematics_step(model, q, error, lower, upper, damping, max_step, ja
     if jacobian is None:
         jacobian = model.tool_jacobian(q)
     regulariser = damping * _IDENTITY_6
+    at_lower, at_upper = q <= lower, q >= upper
+    on_a_bound = bool(at_lower.any() or at_upper.any())
     free = None
     for _ in range(q.size):
         active = jacobian if free is None else jacobian * free
         step = active.T @ np.linalg.solve(active @ active.T + regulariser, error)
-        blocked = ((q <= lower) & (step < 0.0)) | ((q >= upper) & (step > 0.0))
+        if not on_a_bound:
+            break
+        blocked = (at_lower & (step < 0.0)) | (at_upper & (step > 0.0))
         if free is not None:
             blocked &= free
         if not blocked.any():

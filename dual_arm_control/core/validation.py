@@ -51,14 +51,22 @@ def frozen_vector(name, value, size, unit=''):
     return array
 
 
+def all_finite(array):
+    """
+    Return True if every entry of a float array is finite.
+
+    A finite sum of squares is the fast proof (NaN and Inf propagate); only an overflowing
+    sum of finite values needs the element-wise check.
+    """
+    flat = array.ravel()
+    return math.isfinite(flat.dot(flat)) or bool(np.isfinite(array).all())
+
+
 def finite_array(name, value, shape=None):
     """Return value as a float array, raising InputError if it is not finite or misshaped."""
     array = np.asarray(value, dtype=float)
     if shape is not None and array.shape != shape and array.shape != tuple(shape):
         raise InputError(f'{name} must have shape {tuple(shape)}, got {array.shape}')
-    # A finite sum of squares is the fast proof (NaN and Inf propagate); only an overflowing
-    # sum of finite values needs the element-wise check.
-    flat = array.ravel()
-    if not math.isfinite(flat.dot(flat)) and not np.isfinite(array).all():
+    if not all_finite(array):
         raise InputError(f'{name} contains NaN or Inf')
     return array
