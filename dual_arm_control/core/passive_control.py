@@ -30,6 +30,7 @@ import math
 
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import rotation_log
+from dual_arm_control.core.linear_solve import solve
 from dual_arm_control.core.reachability import inverse_kinematics_step, tool_pose_error
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import all_finite
@@ -307,7 +308,7 @@ class PassiveController:
         torque = -self._null_stiffness * error - self._null_damping * dq
         if self.config.elbow_lift_force > 0.0:
             torque += self.model.elbow_jacobian(q)[2] * self.config.elbow_lift_force
-        return torque - jacobian.T @ np.linalg.solve(
+        return torque - jacobian.T @ solve(
             jacobian @ jacobian.T + self._regulariser, jacobian @ torque)
 
     def torque_command(self, q, dq, v_world_desired, w_world_desired, R_world_desired,

@@ -16,6 +16,7 @@ import math
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.geometry import rotation_log, vector_norm
 from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
+from dual_arm_control.core.linear_solve import solve
 from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
@@ -118,7 +119,7 @@ def inverse_kinematics_step(model, q, error, lower, upper, damping, max_step, ja
     free = None
     for _ in range(q.size):
         active = jacobian if free is None else jacobian * free
-        step = active.T @ np.linalg.solve(active @ active.T + regulariser, error)
+        step = active.T @ solve(active @ active.T + regulariser, error)
         if not on_a_bound:
             break
         blocked = (at_lower & (step < 0.0)) | (at_upper & (step > 0.0))

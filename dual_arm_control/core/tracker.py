@@ -44,6 +44,7 @@ from dual_arm_control.core.estimate import (left_jacobian_so3, MeasurementOutcom
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.geometry import (matrix_to_quat_xyzw, quat_xyzw_to_matrix,
                                             rotation_exp, rotation_log)
+from dual_arm_control.core.linear_solve import solve
 from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
@@ -178,8 +179,8 @@ class ObjectTracker:
         orientation_residual = rotation_log(R_measured @ prior['R_world_object'].T)
         P = prior['covariance_orientation']
         orientation_innovation = P[:3, :3] + self._r_orientation * _IDENTITY_3
-        orientation_distance = orientation_residual @ np.linalg.solve(orientation_innovation,
-                                                                      orientation_residual)
+        orientation_distance = orientation_residual @ solve(orientation_innovation,
+                                                            orientation_residual)
         position_distance = position_residual @ position_residual / position_innovation_variance
         gate = self.config.gate_chi_square
         if position_distance > gate or orientation_distance > gate:
@@ -199,7 +200,7 @@ class ObjectTracker:
         self._covariance_position = (correction @ P2 @ correction.T + self._r_position
                                      * np.outer(gain_position, gain_position))
 
-        gain_orientation = np.linalg.solve(orientation_innovation, P[:3, :]).T
+        gain_orientation = solve(orientation_innovation, P[:3, :]).T
         error_state = gain_orientation @ orientation_residual
         self._R_world_object = rotation_exp(error_state[:3]) @ prior['R_world_object']
         self._angular_velocity = prior['angular_velocity'] + error_state[3:]

@@ -44,6 +44,7 @@ class ControllerStep:
         self._schedule = TickSchedule(ds_period)
         self.command_timeout_ns = seconds_to_ns(command_timeout)
         self._command = None
+        self._command_rotation = None
         self._wrench = None
         self._last_cycle_ns = None
         self._last_answer = None
@@ -67,6 +68,7 @@ class ControllerStep:
         """Keep an ArmCommandSample as the newest DS command."""
         self.counters['ds_commands_received'] += 1
         self._command = sample
+        self._command_rotation = None
 
     def wrench(self, sample):
         """Keep a WrenchSample as the newest contact wrench."""
@@ -119,10 +121,11 @@ class ControllerStep:
             self.counters['stale_contact_wrench'] += 1
         else:
             contact_wrench = self._wrench.wrench
-        R_world_desired = command.R_world_desired
-        self._controller.track_posture(command.p_world_attractor, R_world_desired)
+        if self._command_rotation is None:
+            self._command_rotation = command.R_world_desired
+        self._controller.track_posture(command.p_world_attractor, self._command_rotation)
         result = self._controller.torque_command(q, dq, command.v_world, command.w_world,
-                                                 R_world_desired, contact_wrench)
+                                                 self._command_rotation, contact_wrench)
         self.counters['holds_by_controller'] += int(result.held)
         self.counters['saturated'] += int(result.saturated)
         return result.torque

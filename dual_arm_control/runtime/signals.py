@@ -8,7 +8,6 @@ steps count as a refusal. Stamps are integer nanoseconds of sim time.
 """
 
 from dataclasses import dataclass
-import functools
 import math
 
 from dual_arm_control.core.exceptions import InputError
@@ -154,12 +153,10 @@ class ArmCommandSample:
     v_world: np.ndarray
     w_world: np.ndarray
 
-    @functools.cached_property
+    @property
     def R_world_desired(self):
-        """Return the desired tool orientation (3, 3), computed once per sample (read-only)."""
-        rotation = quat_xyzw_to_matrix(self.quat_xyzw)
-        rotation.setflags(write=False)
-        return rotation
+        """Return the desired tool orientation (3, 3)."""
+        return quat_xyzw_to_matrix(self.quat_xyzw)
 
 
 def arm_command_sample(stamp_ns, p_world_attractor, quat_xyzw, v_world, w_world):
