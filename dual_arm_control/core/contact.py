@@ -121,7 +121,7 @@ def contact_geometry(p_world_tool, R_world_tool, p_world_grasp, n_world_grasp, c
     half_pad = 0.5 * np.asarray(config.pad_size) + config.tangential_margin
     within_reach = bool(abs(normal_gap) <= config.contact_distance
                         and np.all(np.abs(tangential_offset) <= half_pad))
-    return ContactGeometry(normal_gap, tuple(float(v) for v in tangential_offset), within_reach)
+    return ContactGeometry(normal_gap, tuple(tangential_offset.tolist()), within_reach)
 
 
 @dataclass(frozen=True)

@@ -105,9 +105,9 @@ def matrix_to_rpy(rotation):
 def matrix_to_quat_xyzw(rotation):
     """Return the unit quaternion (x, y, z, w) with w >= 0 of a rotation matrix."""
     r = np.asarray(rotation, dtype=float)
-    trace = float(r.trace())
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r.tolist()
+    trace = r00 + r11 + r22
     if trace > 0.0:
-        (_, r01, r02), (r10, _, r12), (r20, r21, _) = r.tolist()
         s = 2.0 * math.sqrt(trace + 1.0)
         quat = np.array([(r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s, 0.25 * s])
     else:

@@ -122,7 +122,7 @@ def activation_distances(positions, transitory_attractors, bases, transitory_dis
     radial = np.sqrt(np.einsum('ni,ni->n', local, local))
     normal = np.hypot(local[:, 1], local[:, 2])
     tangent = np.abs(local[:, 0] - transitory_distance)
-    return np.column_stack((radial, normal, tangent))
+    return np.stack((radial, normal, tangent), axis=1)
 
 
 def activations(distances, region):

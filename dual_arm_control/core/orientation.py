@@ -30,6 +30,8 @@ import numpy as np
 
 
 _SERIES_ANGLE = 1e-3
+_IDENTITY = np.eye(3)
+_IDENTITY.setflags(write=False)
 
 
 @dataclass(frozen=True)
@@ -99,7 +101,7 @@ def theta_mu_interaction_matrix(theta, mu):
     theta = float(theta)
     mu = finite_array('mu', mu, (3,))
     mu_cross = skew(mu)
-    return (np.eye(3) - 0.5 * theta * mu_cross
+    return (_IDENTITY - 0.5 * theta * mu_cross
             + _cot_half_angle_coefficient(theta) * mu_cross @ mu_cross)
 
 
@@ -146,7 +148,7 @@ def _error_jacobian_inverse(R_world_target, xi):
     else:
         first = (1.0 - np.cos(theta)) / theta
         second = 1.0 - np.sin(theta) / theta
-    return R_world_target @ (np.eye(3) + first * mu_cross + second * mu_cross @ mu_cross)
+    return R_world_target @ (_IDENTITY + first * mu_cross + second * mu_cross @ mu_cross)
 
 
 def saturated_angular_velocity(omega, max_angular_speed):
