@@ -67,14 +67,21 @@ def _bringup(arguments, domain=None):
 
 
 def lockstep_real_time_factor(out):
-    """Run paper_toss in lockstep; return (sim duration, wall time, exit code)."""
+    """
+    Run paper_toss in lockstep; return (sim duration, wall time, stepping wall time, exit code).
+
+    The wall time is the whole run's, start-up and outputs included; the stepping wall time is
+    the bridge's, from its first FRI cycle to its last (the trajectory log's wall_time).
+    """
     started = time.monotonic()
     process = _bringup(['--scenario', str(config_path('scenarios', 'paper_toss.yaml')),
                         '--out', str(out)])
     code = process.wait()
     wall = time.monotonic() - started
     metrics = json.loads((out / 'metrics.json').read_text())
-    return metrics['sim_duration'], wall, code
+    with np.load(out / 'trajectory.npz') as archive:
+        stepping = float(archive['wall_time'])
+    return metrics['sim_duration'], wall, stepping, code
 
 
 class EpisodeDriver:
