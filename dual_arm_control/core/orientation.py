@@ -139,7 +139,7 @@ def orientation_error_jacobian_inverse(R_world_target, R_world_current):
 
 
 def _error_jacobian_inverse(R_world_target, xi):
-    """Return L_xi^-1 (3, 3) of orientation_error_jacobian_inverse from its error xi (3,)."""
+    """Return L_xi^-1 (3, 3) (appendix A) from the orientation error xi (3,) it is taken at."""
     theta, mu = _angle_axis(xi)
     mu_cross = skew(mu)
     if theta < _SERIES_ANGLE:
