@@ -2,7 +2,8 @@
 The simulator's ground truth on topics: object, tools, pad wrenches and a conveyor's container.
 
 For evaluation and recording only; no node of the control graph subscribes. Published at most
-once per `period` of sim time.
+once per `period` of sim time, and only on the topics someone subscribes to (a recorder, a
+viewer): a message nobody takes is not built.
 """
 
 from dual_arm_control import contract
@@ -27,6 +28,11 @@ class Stream:
     def publish(self):
         """Send the message as it is filled now."""
         self.publisher.publish(self.msg)
+
+    @property
+    def subscribed(self):
+        """Return True if the topic has a subscriber now."""
+        return self.publisher.get_subscription_count() > 0
 
 
 class GroundTruthStreams:
@@ -53,23 +59,26 @@ class GroundTruthStreams:
     def publish(self, twin, stamp_ns):
         """Publish the twin's current ground truth stamped stamp_ns."""
         stamp = time_msg(stamp_ns)
-        self.object.msg.header.stamp = stamp
-        set_odometry(self.object.msg, *twin.object_pose(), *twin.object_twist())
-        self.object.publish()
-        if self.container is not None:
+        if self.object.subscribed:
+            self.object.msg.header.stamp = stamp
+            set_odometry(self.object.msg, *twin.object_pose(), *twin.object_twist())
+            self.object.publish()
+        if self.container is not None and self.container.subscribed:
             position, velocity = twin.container.pose(twin.data)
             self.container.msg.header.stamp = stamp
             set_odometry(self.container.msg, position, _IDENTITY_QUAT, velocity, np.zeros(3))
             self.container.publish()
         for arm in contract.ARMS:
-            p_world_tool, R_world_tool = twin.tool_pose(arm)
             tool = self.tools[arm]
-            tool.msg.header.stamp = stamp
-            fill_odometry(tool.msg, p_world_tool, R_world_tool, *twin.tool_twist(arm))
-            tool.publish()
-            force_world, torque_world = twin.pad_wrench(arm)
+            if tool.subscribed:
+                p_world_tool, R_world_tool = twin.tool_pose(arm)
+                tool.msg.header.stamp = stamp
+                fill_odometry(tool.msg, p_world_tool, R_world_tool, *twin.tool_twist(arm))
+                tool.publish()
             wrench = self.pad_wrenches[arm]
-            wrench.msg.header.stamp = stamp
-            set_vector3(wrench.msg.wrench.force, force_world)
-            set_vector3(wrench.msg.wrench.torque, torque_world)
-            wrench.publish()
+            if wrench.subscribed:
+                force_world, torque_world = twin.pad_wrench(arm)
+                wrench.msg.header.stamp = stamp
+                set_vector3(wrench.msg.wrench.force, force_world)
+                set_vector3(wrench.msg.wrench.torque, torque_world)
+                wrench.publish()
