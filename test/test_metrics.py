@@ -170,3 +170,31 @@ def test_the_readme_documents_every_metric_key():
     readme = (SOURCE_ROOT / 'README.md').read_text()
     contract = readme[readme.index('## Metrics contract'):readme.index('## Layout')]
     assert [key for key in METRIC_KEYS if f'`{key}`' not in contract] == []
+
+
+@pytest.mark.parametrize('flight_time', [-0.004, 0.0, 0.002, 0.008])
+def test_release_state_is_taken_where_the_flight_crosses_the_release_plane(flight_time):
+    """A sample of the planned parabola, before or after the plane, maps back to the plan."""
+    gravity = 9.81
+    p_planned, v_planned = np.array([0.68, 0.0, 0.45]), np.array([0.76, 0.1, 0.38])
+    across = np.cross(v_planned, [0.0, 0.0, 1.0])
+    lateral = 0.005 * across / np.linalg.norm(across)
+    acceleration = np.array([0.0, 0.0, -gravity])
+    p_sample = (p_planned + lateral + v_planned * flight_time
+                + 0.5 * acceleration * flight_time ** 2)
+    v_sample = v_planned + acceleration * flight_time
+    p_plane, v_plane = metrics.release_state_on_plane(p_sample, v_sample, p_planned, v_planned,
+                                                      gravity)
+    assert (p_plane - p_planned) @ v_planned == pytest.approx(0.0, abs=1e-12)
+    assert np.linalg.norm(p_plane - p_planned) == pytest.approx(0.005, abs=1e-9)
+    assert metrics.direction_error_degrees(v_plane, v_planned) < 0.01
+    assert abs(metrics.relative_speed_error(v_plane, v_planned)) < 1e-4
+    assert metrics.direction_error_degrees(v_sample, v_planned) > 0.5 * abs(flight_time) * 1000
+
+
+def test_a_flight_that_never_reaches_the_release_plane_keeps_its_sample():
+    """Straight down across a steep plane that the fall never reaches: the sample as it is."""
+    p_sample, v_sample = np.array([0.5, 0.0, 0.4]), np.array([0.0, 0.0, -1.0])
+    p_plane, v_plane = metrics.release_state_on_plane(
+        p_sample, v_sample, np.array([0.6, 0.0, 0.4]), np.array([1.0, 0.0, 0.0]), 9.81)
+    assert np.array_equal(p_plane, p_sample) and np.array_equal(v_plane, v_sample)

@@ -107,14 +107,15 @@ def assert_sequence(record, expected, dt):
         assert expected_time - 1e-9 <= t < expected_time + dt + 1e-9, (transition, t)
 
 
+LEAD = PhaseConfig().release_lead_time
 TOSS_SEQUENCE = [(Phase.REACH, 0.10), (Phase.CONTACT, 0.52), (Phase.MANIPULATE, 0.57),
-                 (Phase.RELEASE, 0.90), (Phase.RETRACT, 0.95), (Phase.STANDBY, 1.30)]
+                 (Phase.RELEASE, 0.90 - LEAD), (Phase.RETRACT, 0.95), (Phase.STANDBY, 1.30)]
 
 
 @pytest.mark.parametrize('dt', RATES_DT)
 @pytest.mark.parametrize('task', [Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS])
 def test_toss_tasks_full_sequence(task, dt):
-    """Release when the object reaches the plane through the release point (1 m/s: at 0.90 s)."""
+    """Release when the object is a lead time from the release plane (1 m/s: at 0.90 s)."""
     machine = PhaseMachine(PhaseConfig(), task)
     record = run(machine, Scenario(), dt, 1.5)
     assert_sequence(record, TOSS_SEQUENCE, dt)
@@ -167,7 +168,7 @@ def test_release_on_crossing_the_plane_off_path(dt):
 
     The plane through x_release normal to v_release is crossed at 0.6 + 0.3 = 0.9 s.
     """
-    machine = PhaseMachine(PhaseConfig())
+    machine = PhaseMachine(PhaseConfig(release_lead_time=0.0))
     offset = np.array([0.0, 0.04, 0.03])
     scenario = Scenario(object_state=lambda t: toss_object_state(t, offset), contact_end=1.0)
     record = run(machine, scenario, dt, 1.5)
@@ -175,6 +176,16 @@ def test_release_on_crossing_the_plane_off_path(dt):
     release_time, release = [(t, tr) for t, tr in found if tr.target is Phase.RELEASE][0]
     assert 0.9 - 1e-9 <= release_time < 0.9 + dt + 1e-9
     assert 'reaches the release plane 0.050 m' in release.reason
+
+
+@pytest.mark.parametrize('dt', RATES_DT)
+@pytest.mark.parametrize('lead', [0.0, 0.003, 0.02])
+def test_release_leads_the_plane_by_the_pads_opening_time(lead, dt):
+    """At 1 m/s the plane is crossed at 0.9 s; the release comes lead earlier, on the tick."""
+    machine = PhaseMachine(PhaseConfig(release_lead_time=lead))
+    record = run(machine, Scenario(), dt, 1.5)
+    release_time = [t for t, tr in transitions(record) if tr.target is Phase.RELEASE][0]
+    assert 0.9 - lead - 1e-9 <= release_time < 0.9 - lead + dt + 1e-9
 
 
 @pytest.mark.parametrize('offset', [np.array([0.0, 0.3, 0.0]), np.array([0.0, 0.0, -0.15])])

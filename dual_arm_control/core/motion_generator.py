@@ -59,6 +59,7 @@ class DualArmMotionGenerator:
         self._grasp_roll = 0.0
         self._elbow_reaches = None
         self._belt_velocity = np.zeros(3)
+        self._grasped_rotation = None
         self._halt = None
         self.reconfigure(config)
 
@@ -256,9 +257,14 @@ class DualArmMotionGenerator:
         """Return omega^o (3,) [rad/s]: the object's orientation while tossed (eq. 8)."""
         config = self._config
         mode = config.toss.orientation
+        if phase is not Phase.MANIPULATE:
+            self._grasped_rotation = None
         if phase is not Phase.MANIPULATE or config.task not in TOSS_TASKS or mode == 'free':
             return np.zeros(3)
-        target = self._release_rotation if mode == 'given' else level_rotation(R_object)
+        if self._grasped_rotation is None:
+            self._grasped_rotation = R_object
+        targets = {'given': self._release_rotation, 'hold': self._grasped_rotation}
+        target = targets[mode] if mode in targets else level_rotation(R_object)
         return object_angular_velocity(R_object, target, self._object_orientation_ds)
 
     def _reach(self, p_tools, R_tools, frames, directions, dt):

@@ -10,6 +10,7 @@ from pathlib import Path
 from dual_arm_control.contract import ARMS
 from dual_arm_control.core.approach import (impact_directions, object_motion_direction,
                                             support_height_below)
+from dual_arm_control.core.ballistics import STANDARD_GRAVITY
 from dual_arm_control.core.geometry import rpy_to_matrix
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.description.cell import arm_model, load_cell
@@ -118,12 +119,14 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
         result['release_velocity'] = _vector(v_release)
         planned = None if scenario.conveyor is not None else planned_release(scenario, cell)
         if planned is not None:
-            result['release_position_error'] = float(np.linalg.norm(p_release - planned[0]))
+            p_plane, v_plane = metrics.release_state_on_plane(
+                p_release, v_release, planned[0], planned[1], STANDARD_GRAVITY)
+            result['release_position_error'] = float(np.linalg.norm(p_plane - planned[0]))
             result['release_velocity_error'] = metrics.relative_velocity_error(
-                v_release, planned[1])
-            result['release_speed_error'] = metrics.relative_speed_error(v_release, planned[1])
+                v_plane, planned[1])
+            result['release_speed_error'] = metrics.relative_speed_error(v_plane, planned[1])
             result['release_direction_error'] = metrics.direction_error_degrees(
-                v_release, planned[1])
+                v_plane, planned[1])
         if scenario.release_orientation is not None:
             result['release_orientation_error'] = metrics.rotation_error_degrees(
                 data['object_quat_xyzw'][release],

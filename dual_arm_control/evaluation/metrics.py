@@ -169,6 +169,39 @@ def return_home_index(t, tool_positions, start, criteria=EventCriteria()):
     return first_true_index(near, start)
 
 
+def release_state_on_plane(p_release, v_release, p_planned, v_planned, gravity):
+    """
+    Return the free-flying box's (position (3,) [m], velocity (3,) [m/s]) on the release plane.
+
+    The release plane passes through the planned release position across the planned release
+    velocity. The box's first free-flight sample lies on its parabola a few milliseconds past
+    the pads' opening, where gravity has already turned its velocity (0.7 deg per ms at
+    0.85 m/s); comparing that sample with the planned state at the plane mixes two points of
+    the flight. Propagating the free flight (no drag) forward or back to the plane compares the
+    actual and the planned release at the same place, and the parabola it lands on is the
+    same.
+    """
+    p_release = np.asarray(p_release, dtype=float)
+    v_release = np.asarray(v_release, dtype=float)
+    direction = np.asarray(v_planned, dtype=float)
+    direction = direction / np.linalg.norm(direction)
+    acceleration = np.array([0.0, 0.0, -gravity])
+    a = 0.5 * float(acceleration @ direction)
+    b = float(v_release @ direction)
+    c = float((p_release - np.asarray(p_planned, dtype=float)) @ direction)
+    if abs(a) < 1e-12:
+        roots = [-c / b] if abs(b) > 1e-12 else []
+    else:
+        discriminant = b * b - 4.0 * a * c
+        roots = ([(-b + sign * np.sqrt(discriminant)) / (2.0 * a) for sign in (1.0, -1.0)]
+                 if discriminant >= 0.0 else [])
+    if not roots:
+        return p_release, v_release
+    time = min(roots, key=abs)
+    return (p_release + v_release * time + 0.5 * acceleration * time ** 2,
+            v_release + acceleration * time)
+
+
 def relative_velocity_error(velocity, desired_velocity):
     """Return ||v - v_d|| / ||v_d|| [-]."""
     desired_velocity = np.asarray(desired_velocity, dtype=float)
