@@ -65,10 +65,10 @@ class TossConfig:
         low=0, high=1.0)
     orientation: str = setting(
         'hold', "The carried object's orientation (the rotation term of eq. 8): hold keeps the "
-        'orientation the box had when the grasp settled, so the impact and the arms\' unequal '
-        'lag do not set it turning (catalogue_random seed 11: 47 %, landing p95 4 cm, against '
-        '42 % and 7 cm with free); free leaves it as the grasp holds it (omega = 0); given '
-        'turns it to release_rpy_deg; level keeps it upright at its current yaw.',
+        'orientation the box had when the grasp settled, so the impact and the unequal lag of '
+        'the arms do not set it turning (catalogue_random seed 11: 47 %, landing p95 4 cm, '
+        'against 42 % and 7 cm with free); free leaves it as the grasp holds it (omega = 0); '
+        'given turns it to release_rpy_deg; level keeps it upright at its current yaw.',
         choices=ORIENTATION_MODES)
     release_rpy_deg: tuple = setting(
         (0.0, 0.0, 0.0), 'Desired orientation of the object at release, world frame: roll, '
