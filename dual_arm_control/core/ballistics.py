@@ -199,9 +199,15 @@ def landing_without_drag(p_release, v_release, landing_height, gravity=STANDARD_
             f'apex {p_release[2] + vertical_speed ** 2 / (2.0 * gravity):.4f} m is below the '
             f'landing height {float(landing_height):.4f} m')
     t = (vertical_speed + math.sqrt(discriminant)) / gravity
-    gravity_vector = np.array([0.0, 0.0, -gravity])
-    return Landing(position=p_release + v_release * t + 0.5 * gravity_vector * t ** 2,
-                   velocity=v_release + gravity_vector * t, flight_time=t)
+    position, velocity = drag_free_state(p_release, v_release, t, gravity)
+    return Landing(position=position, velocity=velocity, flight_time=t)
+
+
+def drag_free_state(position, velocity, time, gravity=STANDARD_GRAVITY):
+    """Return (position (3,) [m], velocity (3,) [m/s]) of a drag-free flight time [s] later."""
+    acceleration = np.array([0.0, 0.0, -gravity])
+    return (position + velocity * time + 0.5 * acceleration * time ** 2,
+            velocity + acceleration * time)
 
 
 def flight_derivative(velocity, model):

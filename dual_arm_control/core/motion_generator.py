@@ -261,10 +261,14 @@ class DualArmMotionGenerator:
             self._grasped_rotation = None
         if phase is not Phase.MANIPULATE or config.task not in TOSS_TASKS or mode == 'free':
             return np.zeros(3)
-        if self._grasped_rotation is None:
-            self._grasped_rotation = R_object
-        targets = {'given': self._release_rotation, 'hold': self._grasped_rotation}
-        target = targets[mode] if mode in targets else level_rotation(R_object)
+        if mode == 'given':
+            target = self._release_rotation
+        elif mode == 'hold':
+            if self._grasped_rotation is None:
+                self._grasped_rotation = R_object
+            target = self._grasped_rotation
+        else:
+            target = level_rotation(R_object)
         return object_angular_velocity(R_object, target, self._object_orientation_ds)
 
     def _reach(self, p_tools, R_tools, frames, directions, dt):

@@ -8,6 +8,7 @@ trajectories.
 
 from dataclasses import dataclass
 
+from dual_arm_control.core.ballistics import drag_free_state
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix, rotation_log
 from dual_arm_control.core.validation import check_range
 import numpy as np
@@ -185,8 +186,7 @@ def release_state_on_plane(p_release, v_release, p_planned, v_planned, gravity):
     v_release = np.asarray(v_release, dtype=float)
     direction = np.asarray(v_planned, dtype=float)
     direction = direction / np.linalg.norm(direction)
-    acceleration = np.array([0.0, 0.0, -gravity])
-    a = 0.5 * float(acceleration @ direction)
+    a = -0.5 * gravity * float(direction[2])
     b = float(v_release @ direction)
     c = float((p_release - np.asarray(p_planned, dtype=float)) @ direction)
     if abs(a) < 1e-12:
@@ -197,9 +197,7 @@ def release_state_on_plane(p_release, v_release, p_planned, v_planned, gravity):
                  if discriminant >= 0.0 else [])
     if not roots:
         return p_release, v_release
-    time = min(roots, key=abs)
-    return (p_release + v_release * time + 0.5 * acceleration * time ** 2,
-            v_release + acceleration * time)
+    return drag_free_state(p_release, v_release, min(roots, key=abs), gravity)
 
 
 def relative_velocity_error(velocity, desired_velocity):

@@ -91,14 +91,11 @@ def premature_drop(data, fault_time, release_time=None, tolerance=RELEASE_TOLERA
     free = (t >= fault_time - 1e-9) & ~held
     if release_time is not None:
         free &= t < release_time - tolerance
-    index = 0
-    while free[index:].any():
-        start = index + int(np.argmax(free[index:]))
-        end = start + int(np.argmin(free[start:])) if not free[start:].all() else len(t)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], free.astype(np.int8), [0]))))
+    for start, end in zip(edges[::2], edges[1::2]):
         if t[end - 1] - t[start] >= LEFT_PADS_TIME - 1e-9 or end == len(t):
             heights = np.asarray(data['object_position'])[start:, 2]
             return float(t[start]), float(heights.max() - heights.min())
-        index = end
     return None, 0.0
 
 
