@@ -14,6 +14,7 @@ pad-object contact is an explicit pair with stiff, critically damped parameters 
 """
 
 from dataclasses import dataclass
+import math
 import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control.core.arms import ARMS
@@ -33,12 +34,12 @@ PAD_GEOM = 'pad'
 OBJECT_BODY = 'object'
 # Contact of pads with the object, and of the object with the pallet, table and floor:
 # time constant 5 ms (>= 2 dt at dt = 1 ms), critically damped; impedance 0.95 -> 0.99 over
-# 1 mm of penetration. Pads resist twisting (condim 4) with a 0.02 m torsional coefficient,
-# the scale of the pad's contact patch.
+# 1 mm of penetration. Pads resist twisting (condim 4) as a flat patch pressed flush on a face
+# with uniform pressure: torsional coefficient mu times the mean distance of the pad's points
+# from its centre (pad_torsion_arm, 0.048 m for the 0.15 x 0.10 m pad).
 CONTACT_SOLREF = (0.005, 1.0)
 CONTACT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
 PAD_CONDIM = 4
-PAD_TORSIONAL_FRICTION = 0.02    # [m]
 PAD_ROLLING_FRICTION = 0.0001    # [m]
 # Box against pallet, table and floor [-]. Set on both geoms (MuJoCo mixes geom frictions by
 # taking the maximum); the pad-box friction comes from the object catalogue through the pair.
@@ -307,11 +308,26 @@ def build_spec(cell, object_config):
                              geomname2=OBJECT_BODY)
         pair.condim = PAD_CONDIM
         friction = float(object_config.friction)
-        pair.friction = [friction, friction, PAD_TORSIONAL_FRICTION, PAD_ROLLING_FRICTION,
-                         PAD_ROLLING_FRICTION]
+        half_length, half_width, _ = spec.geom(f'{arm}/{PAD_GEOM}').size
+        pair.friction = [friction, friction, friction * pad_torsion_arm(half_length, half_width),
+                         PAD_ROLLING_FRICTION, PAD_ROLLING_FRICTION]
         pair.solref = CONTACT_SOLREF
         pair.solimp = CONTACT_SOLIMP
     return spec
+
+
+def pad_torsion_arm(half_length, half_width):
+    """
+    Return the mean distance [m] of a rectangular pad's points from its centre.
+
+    Pressed flush with uniform pressure p, a pad of half sides a, b twisting on a face resists
+    with mu p times the integral of r over the patch, that is mu N times this mean distance:
+    (2 a b d + a^3 ln((b + d) / a) + b^3 ln((a + d) / b)) / (6 a b), d = sqrt(a^2 + b^2).
+    """
+    a, b = float(half_length), float(half_width)
+    d = math.hypot(a, b)
+    return (2.0 * a * b * d + a ** 3 * math.log((b + d) / a)
+            + b ** 3 * math.log((a + d) / b)) / (6.0 * a * b)
 
 
 def build_model(cell, object_config):

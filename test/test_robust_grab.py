@@ -30,6 +30,7 @@ from dual_arm_control.scenario import load_scenario
 from dual_arm_control.trial_sampling import sample_trial
 import numpy as np
 import pytest
+from sim_bridge import scene
 from sim_bridge.twin import DualArmTwin
 import yaml
 
@@ -321,13 +322,12 @@ def test_failure_modes_count_each_trials_first_reason():
 
 def test_a_heavy_box_is_tossed_level_and_lands_on_target(cell):
     """
-    The 4.5 kg open box, centred: the impact and its inertia tip it about the squeeze axis.
+    The 4.5 kg open box, centred: eq. 8's rotation term keeps it level through the toss.
 
-    Left free in the grasp it leaves the hands pitched 10 deg or more (15 deg, 10 cm from the
-    target with the paper's forward impact; 64 deg, slipping out, with the impact turned to
-    keep the elbow within its reach), lands on an edge and misses its target by more than
-    5 cm; kept level (toss.orientation, eq. 8's rotation term on the tracked box) it leaves
-    within 10 deg of upright (8.4 measured) and lands within the 5 cm of a successful toss.
+    Left free in the grasp, the impact and the box's inertia as the arms swing it up pitch it
+    about the squeeze axis (2.1 deg at release measured); kept level (toss.orientation, the
+    rotation term on the tracked box) it leaves within 1 deg of upright (0.3 measured). Both
+    land within the 5 cm of a successful toss, held without slipping.
     """
     scenario = load_scenario('paper_toss', cell=cell)
     spec = load_catalogue()['open_box']
@@ -342,11 +342,11 @@ def test_a_heavy_box_is_tossed_level_and_lands_on_target(cell):
         metrics = episode_metrics(heavy, data, cell)
         release = metrics_index(data['t'], metrics['t_release'])
         results[mode] = (tilt_degrees(data['object_quat_xyzw'][release]), metrics)
-    assert results['free'][0] >= 10.0
-    assert results['free'][1]['landing_error'] >= 0.05
-    tilt, level = results['level']
-    assert tilt <= 10.0
-    assert level['landing_error'] <= 0.05 and level['max_slip'] <= 0.01 and level['success']
+    free_tilt, level_tilt = results['free'][0], results['level'][0]
+    assert level_tilt <= 1.0 and free_tilt >= level_tilt + 1.0
+    for _, metrics in results.values():
+        assert metrics['landing_error'] <= 0.05 and metrics['max_slip'] <= 0.01
+        assert metrics['success']
 
 
 def test_a_yawed_box_held_in_its_grasp_orientation_turns_less_and_lands_closer(cell):
@@ -379,3 +379,37 @@ def test_a_yawed_box_held_in_its_grasp_orientation_turns_less_and_lands_closer(c
 def metrics_index(t, time_from_start):
     """Return the trajectory index of a metrics time (seconds from the episode start)."""
     return int(np.argmin(np.abs(t - EPISODE_START_TIME - time_from_start)))
+
+
+def contact_breaks(data, duration):
+    """Return each pad's number of on-to-off contact changes within duration [s] of its first."""
+    breaks = []
+    for arm in ('left', 'right'):
+        contact = data[f'{arm}_pad_contact'].astype(int)
+        first = int(np.argmax(contact))
+        window = contact[first:][data['t'][first:] < data['t'][first] + duration]
+        breaks.append(int(np.sum(np.diff(window) < 0)))
+    return breaks
+
+
+def test_a_six_kilogram_box_stays_on_both_pads_while_carried(cell, monkeypatch):
+    """
+    The paper cube at 6 kg (the bottle pack's mass), centred: both pads stay on it to release.
+
+    Accelerating it toward the 0.85 m/s release turns it about the squeeze axis on the pads'
+    edges. Pads that resist twisting as flat patches (mu N times the pad's mean radius of
+    0.048 m, sim_bridge.scene) keep it flush: a pad loses contact a few times at most (4
+    measured). Resisting as a point-like contact (0.02 m), the box rocks between pad corners
+    and each pad loses contact 20 times or more in the same time (34 measured), which the
+    grasp detection reads as a grasp that never settles.
+    """
+    scenario = load_scenario('paper_toss', cell=cell)
+    heavy = replace(scenario, object=replace(scenario.object, mass=6.0))
+    data = run_episode(heavy, RunnerConfig(), cell).trajectory
+    metrics = episode_metrics(heavy, data, cell)
+    assert metrics['success'] and metrics['max_slip'] <= 0.005
+    carry = metrics['t_release'] - max(metrics['t_contact_left'], metrics['t_contact_right'])
+    assert max(contact_breaks(data, carry)) <= 8
+    monkeypatch.setattr(scene, 'pad_torsion_arm', lambda half_length, half_width: 0.02)
+    data = run_episode(heavy, RunnerConfig(), cell).trajectory
+    assert min(contact_breaks(data, carry)) >= 20

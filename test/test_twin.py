@@ -4,6 +4,7 @@ import dataclasses
 
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix, rotation_log
+from dual_arm_control.core.wrench_qp import WrenchQPConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.runtime.node_settings import FRI_PERIODS
 from dual_arm_control.scenario import load_scenario, Perturbation
@@ -11,6 +12,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+from sim_bridge.scene import pad_torsion_arm
 from sim_bridge.twin import DualArmTwin
 
 GRAVITY = 9.81          # [m/s^2]
@@ -381,3 +383,24 @@ def test_two_pads_squeeze_and_lift_the_box(cell, hold_scenario):
         force_sensor, _ = twin.ft_wrench(arm)
         assert force_sensor[2] == pytest.approx(-squeeze, abs=3.0), \
             f'{arm}: FT z {force_sensor[2]:.1f} N; the pad pushing with {squeeze} N reads -z'
+
+
+def test_pad_torsion_arm_is_the_mean_radius_of_the_pad():
+    """The closed form equals the mean distance of 600 x 400 cell centres over the pad."""
+    x = (np.arange(600) + 0.5) / 600 * 0.15 - 0.075
+    y = (np.arange(400) + 0.5) / 400 * 0.10 - 0.05
+    assert pad_torsion_arm(0.075, 0.05) == pytest.approx(
+        np.hypot(*np.meshgrid(x, y)).mean(), rel=1e-4)
+    assert pad_torsion_arm(0.05, 0.05) == pytest.approx(0.05 * 0.7652, rel=1e-3)
+
+
+def test_the_wrench_qp_counts_on_less_torsion_than_the_twin_gives(cell, hold_scenario):
+    """At the lowest pad friction any shipped randomization draws (0.6) the twin resists more."""
+    low_friction = dataclasses.replace(
+        hold_scenario, object=dataclasses.replace(hold_scenario.object, friction=0.6))
+    twin = DualArmTwin(low_friction, cell)
+    for arm in twin.arms:
+        pair = mujoco.mj_name2id(twin.model, mujoco.mjtObj.mjOBJ_PAIR, f'{arm}/pad_object')
+        torsion = twin.model.pair_friction[pair][2]
+        assert torsion == pytest.approx(0.6 * pad_torsion_arm(0.075, 0.05))
+        assert torsion > WrenchQPConfig().torsion_arm

@@ -90,8 +90,9 @@ class WrenchQPConfig:
         0.9, 'Coulomb friction mu between pad and object; pyramid half-width mu / sqrt(2).',
         low=0, high=5.0, low_open=True)
     torsion_arm: float = setting(
-        0.02, "gamma_t: torsional friction limit |m_z| <= gamma_t f_z; no more than the pads' "
-        "real torsional friction (0.02 m in the twin's contact model, sim_bridge/scene.py).",
+        0.02, "gamma_t: torsional friction limit |m_z| <= gamma_t f_z; below the pads' real "
+        "torsional friction (mu times the pad's mean radius 0.048 m in the twin's contact "
+        'model, sim_bridge/scene.py: 0.029 m at the lowest randomized mu 0.6).',
         unit='m', low=0, high=1.0)
     pad_half_length: float = setting(
         0.075, 'Half extent of the pad along the pad x axis: |m_y| <= this * f_z.',
