@@ -246,6 +246,29 @@ def test_the_arm_that_would_touch_last_catches_up_with_the_other():
     np.testing.assert_array_equal(capped[0], velocity[0])
 
 
+def test_a_pad_tilted_against_its_face_is_timed_by_its_nearest_corner():
+    """
+    A pad tilted 7 deg against its face is 9.1 mm closer to it at its near end than at its centre.
+
+    The pad is 0.15 x 0.10 m, its normal tilted about its short axis: the near end of its long
+    side is 0.075 sin 7 deg = 9.1 mm closer than its centre.
+    """
+    from dual_arm_control.core.approach import first_touch_gaps
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    grasp_points = np.array([[0.4, 0.1, 0.3], [0.4, -0.1, 0.3]])
+    p_tools = grasp_points - 0.02 * normals
+    flush = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    tilt = math.radians(7.0)
+    about_tool_y = np.array([[math.cos(tilt), 0.0, math.sin(tilt)], [0.0, 1.0, 0.0],
+                             [-math.sin(tilt), 0.0, math.cos(tilt)]])
+    mirrored = np.diag([1.0, -1.0, -1.0])
+    R_tools = [flush @ about_tool_y, mirrored @ flush]
+    gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, 0.075, 0.05)
+    assert R_tools[1][:, 2] @ normals[1] == pytest.approx(1.0)
+    assert gaps[1] == pytest.approx(0.02)
+    assert gaps[0] == pytest.approx(0.02 - 0.075 * math.sin(tilt))
+
+
 def test_null_space_posture_follows_a_reachable_solution_within_limits(cell):
     from dual_arm_control.core.passive_control import PassiveController
     model = arm_model('left', cell)

@@ -128,8 +128,8 @@ def test_a_live_parameter_change_keeps_the_speed_loop_correction():
     loop = generator._toss_feedback
     loop.update(np.array([1.0, 0.0, 0.0]), np.array([0.8, 0.0, 0.0]), 0.005)
     integrated = loop.correction
-    assert integrated == pytest.approx(20.0 * 0.005 * 0.2)
-    generator.reconfigure(replace(config, toss=replace(config.toss, speed_integral_gain=40.0),
+    assert integrated == pytest.approx(config.toss.speed_integral_gain * 0.005 * 0.2)
+    generator.reconfigure(replace(config, toss=replace(config.toss, speed_integral_gain=30.0),
                                   max_linear_speed=1.2))
     assert generator._toss_feedback.correction == integrated
-    assert generator._toss_feedback.integral_gain == 40.0
+    assert generator._toss_feedback.integral_gain == 30.0

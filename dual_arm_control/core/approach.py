@@ -21,6 +21,26 @@ import numpy as np
 TOSS_TASKS = (Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS)
 
 
+def first_touch_gaps(grasp_points, p_tools, R_tools, normals, pad_half_length, pad_half_width):
+    """
+    Return each pad's gap (2,) [m] to its face plane from the pad corner nearest to it.
+
+    grasp_points, p_tools (2, 3) [m]; R_tools: the two tool rotations (pad normal = tool z,
+    pad length along tool x); normals (2, 3): the inward face normals. A pad tilted against
+    its face touches with that corner first: synchronising the pads' centres let a pad 5-8 deg
+    off its face (the face turned toward its arm's base, box yawed 20 deg) touch 10-15 ms
+    before the other.
+    """
+    corners = np.array([[length, width, 0.0] for length in (-pad_half_length, pad_half_length)
+                        for width in (-pad_half_width, pad_half_width)])
+    gaps = np.empty(2)
+    for index in range(2):
+        normal = normals[index]
+        protrusion = float(np.max(corners @ (R_tools[index].T @ normal)))
+        gaps[index] = float((grasp_points[index] - p_tools[index]) @ normal) - protrusion
+    return gaps
+
+
 def synchronised_arrival(velocity, gaps, normals, horizon, fastest=1.2):
     """
     Return velocity (2, 3) [m/s], the arm that would touch last sped up to touch with the other.

@@ -58,6 +58,10 @@ class MotionGeneratorConfig:
     toss_speed_time_constant: float = setting(
         0.05, "The object's desired speed rises from the impact speed to the toss speed with "
         'this time constant after contact.', unit='s', low=0, high=5.0, low_open=True)
+    held_object_time_constant: float = setting(
+        0.1, "While both pads hold the box it is read from the pads' kinematics, its offset "
+        "from their midpoint following the tracker's estimate with this time constant "
+        '(core.held_object); 0 reads the tracker alone.', unit='s', low=0, high=10.0)
     coordination: CoordinationConfig = field(default_factory=CoordinationConfig)
     impact: ImpactConfig = field(default_factory=ImpactConfig)
     toss: TossConfig = field(default_factory=TossConfig)
