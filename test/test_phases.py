@@ -354,3 +354,30 @@ def test_invalid_inputs_rejected():
         PhaseConfig(release_tolerance=0.0)
     with pytest.raises(ConfigError):
         PhaseConfig(contact_settle_time=-0.01)
+
+
+def place_object_stalling(t):
+    """Object converging to 2 cm above the place (the arms' reach), then still there."""
+    start = P_PLACE + np.array([0.0, 0.0, 0.02])
+    if t <= 0.6:
+        return P_OBJECT_START.copy(), np.zeros(3)
+    distance = 0.3 * np.exp(-(t - 0.6) / 0.1)
+    direction = (start - P_OBJECT_START) / np.linalg.norm(start - P_OBJECT_START)
+    return start - distance * direction, distance / 0.1 * direction
+
+
+def test_a_box_the_arms_bring_no_closer_than_2_cm_is_put_down_where_it_stalls():
+    """
+    2 cm above the place (outside the 1.2 cm tolerance) the box stops: released 0.3 s later.
+
+    It slows below 0.02 m/s at 0.6 + 0.1 ln(0.3 / 0.002) = 1.101 s (within 3 cm since 0.894 s);
+    the release comes place_stall_time after, on the tick; a box still converging is not.
+    """
+    machine = PhaseMachine(PhaseConfig(), Task.PICK_AND_PLACE)
+    record = run(machine, Scenario(object_state=place_object_stalling, contact_end=3.0),
+                 0.005, 2.0)
+    release_time, release = [(t, tr) for t, tr in transitions(record)
+                             if tr.target is Phase.RELEASE][0]
+    slow = 0.6 + 0.1 * np.log(0.3 / 0.002)
+    assert slow + 0.3 - 0.005 <= release_time <= slow + 0.3 + 0.005 + 1e-9
+    assert 'stalled 0.020 m' in release.reason

@@ -263,8 +263,11 @@ def test_failure_reasons_name_the_criteria():
     assert failure_reason('pick_and_toss', {'contact_time_gap': None}) == \
         'no contact of both pads'
     assert failure_reason('pick_and_place', {'contact_time_gap': 0.02, 't_grasp': 1.0,
+                                             't_release': 1.5,
                                              'place_position_error': 0.01}) == \
         'contact_time_gap 0.02 > 0.01 s'
+    assert failure_reason('pick_and_place', {'contact_time_gap': 0.002, 't_grasp': 1.0,
+                                             't_release': None}) == 'no release'
 
 
 def test_bad_scenario_is_one_line_and_exit_2(tmp_path, capsys):

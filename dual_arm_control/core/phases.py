@@ -10,8 +10,8 @@ update(inputs, dt) advances the time in phase by dt seconds and takes at most on
     RETRACT --both tools near standby--> STANDBY
 
 go_home from REACH jumps to RETRACT, from CONTACT/MANIPULATE to RELEASE (open the hands first);
-reset returns to STANDBY at once. Commands act once, on their rising edge. All latches are
-cleared at every episode start (a release flag must not outlive its episode).
+reset returns to STANDBY at once. Commands act on their rising edge; every latch is cleared
+at an episode start.
 """
 
 from dataclasses import dataclass, field
@@ -19,7 +19,7 @@ import enum
 
 from dual_arm_control.core.contact import ContactState
 from dual_arm_control.core.exceptions import ConfigError, InputError
-from dual_arm_control.core.release import TossRelease
+from dual_arm_control.core.release import PlaceRelease, TossRelease
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.validation import finite_array
 import numpy as np
@@ -66,18 +66,17 @@ class PhaseConfig:
     contact_settle_time: float = setting(
         0.05, 'Both pads must stay in contact this long in CONTACT.', unit='s', low=0)
     single_contact_timeout: float = setting(
-        0.2, 'One pad in contact alone this long in REACH is reported.',
-        unit='s', low=0, low_open=True)
+        0.2, 'A lone pad in contact this long in REACH is reported.', unit='s', low=0,
+        low_open=True)
     grasp_close_timeout: float = setting(
         0.4, 'One pad in contact alone this long in REACH aborts the grasp: RETRACT, event '
         "'grasp_aborted' (the other pad will not arrive in time).", unit='s', low=0, low_open=True)
     release_tolerance: float = setting(
-        0.03, "The paper's 0.03 m: an object inside this sphere around x_release that starts "
-        'moving away from it is released.', unit='m', low=0, low_open=True)
+        0.03, "The paper's 0.03 m: a box inside this sphere around x_release moving away from "
+        'it is released.', unit='m', low=0, low_open=True)
     release_plane_radius: float = setting(
         0.10, 'A toss releases when the object reaches the plane through x_release across the '
-        'release velocity within this distance of the release path.',
-        unit='m', low=0, low_open=True)
+        'release velocity within this of the release path.', unit='m', low=0, low_open=True)
     release_lead_time: float = setting(
         0.003, 'The release plane is reached this much early (object speed times it), for the '
         'time the pads take to come off the box: 3 ms puts the free flight on the planned '
@@ -90,12 +89,19 @@ class PhaseConfig:
     place_speed: float = setting(
         0.1, 'Place release when ||v_o|| < this (and within place_tolerance).',
         unit='m/s', low=0, low_open=True)
+    place_stall_distance: float = setting(
+        0.03, 'A box this near the place, slower than place_stall_speed for place_stall_time, '
+        'is let go where it is (core.release.PlaceRelease).', unit='m', low=0, high=1.0)
+    place_stall_speed: float = setting(0.02, 'See place_stall_distance.', unit='m/s', low=0,
+                                       high=1.0, low_open=True)
+    place_stall_time: float = setting(0.3, 'See place_stall_distance.', unit='s', low=0,
+                                      high=10.0, low_open=True)
     lift_tolerance: float = setting(
-        0.03, "The 'lift_reached' event fires within this of the lift pose.",
-        unit='m', low=0, low_open=True)
+        0.03, "'lift_reached' fires within this of the lift pose.", unit='m', low=0,
+        low_open=True)
     grasp_loss_timeout: float = setting(
-        0.1, 'A pad out of contact this long in MANIPULATE releases.',
-        unit='s', low=0, low_open=True)
+        0.1, 'A pad out of contact this long in MANIPULATE releases.', unit='s', low=0,
+        low_open=True)
     open_hands_time: float = setting(
         0.5, 'RELEASE ends after this even if a pad still reads contact.',
         unit='s', low=0, low_open=True)
@@ -232,6 +238,7 @@ class PhaseMachine:
         self._single_contact_reported = False
         self._grasp_loss_time = None
         self._toss_release = TossRelease()
+        self._place_release = PlaceRelease()
         self._lift_reached = False
 
     def update(self, inputs, dt):
@@ -336,6 +343,7 @@ class PhaseMachine:
         if self._time_in_phase >= self._config.contact_settle_time - 1e-9:
             self._grasp_loss_time = None
             self._toss_release.reset()
+            self._place_release.reset()
             events.append('grasp_settled')
             return PhaseTransition(Phase.CONTACT, Phase.MANIPULATE,
                                    f'both pads in contact for {self._time_in_phase:.3f} s')
@@ -356,26 +364,20 @@ class PhaseMachine:
                 self._lift_reached = True
                 events.append('lift_reached')
             return None
-        reason = self._release_reason(inputs)
+        reason = self._release_reason(inputs, dt)
         if reason is not None:
             events.append('released')
             return PhaseTransition(Phase.MANIPULATE, Phase.RELEASE, reason)
         return None
 
-    def _release_reason(self, inputs):
+    def _release_reason(self, inputs, dt):
         """Return why the object must be released now (place or toss rule), or None."""
-        config = self._config
-        p_world_object = inputs.p_world_object
         if self._task is Task.PICK_AND_PLACE:
-            distance = np.linalg.norm(p_world_object - inputs.p_world_place)
-            speed = np.linalg.norm(inputs.v_world_object)
-            if distance <= config.place_tolerance and speed < config.place_speed:
-                return (f'object {distance:.3f} m from the place position at '
-                        f'{speed:.3f} m/s')
-            return None
-        return self._toss_release.reason(p_world_object, inputs.v_world_object,
+            return self._place_release.reason(inputs.p_world_object, inputs.v_world_object,
+                                              inputs.p_world_place, self._config, dt)
+        return self._toss_release.reason(inputs.p_world_object, inputs.v_world_object,
                                          inputs.p_world_release, inputs.v_world_release,
-                                         config)
+                                         self._config)
 
     def _from_release(self, inputs, dt, events):
         if not (inputs.contact_left.in_contact or inputs.contact_right.in_contact):

@@ -118,6 +118,8 @@ def failure_reason(task, metrics):
         elif metrics.get('t_release') is not None and metrics.get('landing_error') is None:
             reasons.append('no landing within the run')
     elif task in PLACE_TASKS:
+        if metrics.get('t_grasp') is not None and metrics.get('t_release') is None:
+            reasons.append('no release')
         checks = [('place_position_error', PLACE_LIMIT, 'm'),
                   ('place_speed', PLACE_SPEED_LIMIT, 'm/s'),
                   ('box_tilt_at_place', PLACE_TILT_LIMIT, 'deg')]
