@@ -6,7 +6,7 @@ the joint encoders at every DS tick without noise or latency. Motion capture giv
 centre with 0.5-2 mm of noise; the tracker, tuned for the low end, turns the high end into
 velocity errors of 0.03-0.13 m/s from one 5 ms tick to the next and lags by about 1 %: the
 toss's speed loop chased them, the release rule read them, and over the catalogue 33 of 300
-boxes slipped more than 1 cm in the pads (10 once read from the pads).
+boxes slipped more than 1 cm in the pads (9 once read from the pads).
 
 HeldObjectEstimate is a complementary filter. The box's centre is the pads' midpoint plus an
 offset held in a pad's frame, so that it turns with the grasp (a shifted grasp holds the box
