@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 DT = 0.005                       # [s] DS tick
+TAU = 0.1                        # [s] the offset's time constant (the default)
 PAD_VELOCITY = np.array([0.8, 0.0, 0.4])
 TRUE_OFFSET = np.array([0.0, 0.004, -0.002])
 
@@ -16,15 +17,15 @@ def run(estimate, ticks, noise, offset=lambda tick: TRUE_OFFSET):
         midpoint = np.array([0.5, 0.0, 0.35]) + PAD_VELOCITY * tick * DT
         true_position = midpoint + offset(tick)
         p, v = estimate.update(midpoint, np.eye(3), true_position + noise[tick],
-                               PAD_VELOCITY + 0.3, DT)
+                               PAD_VELOCITY + 0.3, DT, TAU)
         rows.append((p, v, true_position))
     return rows
 
 
 def test_the_first_tick_of_a_hold_is_the_trackers_estimate():
-    estimate = HeldObjectEstimate(0.1)
+    estimate = HeldObjectEstimate()
     p, v = estimate.update(np.zeros(3), np.eye(3), np.array([0.1, 0.2, 0.3]),
-                           np.array([1.0, 0.0, 0.0]), DT)
+                           np.array([1.0, 0.0, 0.0]), DT, TAU)
     assert p == pytest.approx([0.1, 0.2, 0.3]) and v == pytest.approx([1.0, 0.0, 0.0])
 
 
@@ -37,7 +38,7 @@ def test_two_millimetres_of_mocap_noise_become_a_fraction_and_the_velocity_exact
     tracker's (off by 0.3 m/s here).
     """
     noise = np.random.default_rng(0).normal(0.0, 0.002, (200, 3))
-    rows = run(HeldObjectEstimate(0.1), 200, noise)
+    rows = run(HeldObjectEstimate(), 200, noise)
     errors = np.array([p - true for p, _, true in rows[60:]])
     assert np.abs(errors).max() < 0.001
     assert np.abs(noise[60:]).max() > 0.005
@@ -50,7 +51,7 @@ def test_a_slip_of_the_box_in_the_pads_shows_up_within_a_few_time_constants():
     def slipped(tick):
         return TRUE_OFFSET + (np.array([0.0, 0.0, -0.005]) if tick >= 100 else 0.0)
 
-    rows = run(HeldObjectEstimate(0.1), 200, np.zeros((200, 3)), slipped)
+    rows = run(HeldObjectEstimate(), 200, np.zeros((200, 3)), slipped)
     p, _, true = rows[100 + 60]
     assert abs((p - true)[2]) < 0.05 * 0.005
     p, _, true = rows[101]
@@ -58,10 +59,11 @@ def test_a_slip_of_the_box_in_the_pads_shows_up_within_a_few_time_constants():
 
 
 def test_reset_starts_a_new_hold_from_the_tracker():
-    estimate = HeldObjectEstimate(0.1)
+    estimate = HeldObjectEstimate()
     run(estimate, 10, np.zeros((10, 3)))
     estimate.reset()
-    p, _ = estimate.update(np.zeros(3), np.eye(3), np.array([1.0, 1.0, 1.0]), np.zeros(3), DT)
+    p, _ = estimate.update(np.zeros(3), np.eye(3), np.array([1.0, 1.0, 1.0]), np.zeros(3), DT,
+                           TAU)
     assert p == pytest.approx([1.0, 1.0, 1.0])
 
 
@@ -72,33 +74,33 @@ def test_an_offset_grasp_turning_with_the_pads_moves_the_centre_around_them():
     Its centre 8 cm from the pads' midpoint along pad x, the grasp turning about z: the centre
     moves at omega x r = 0.04 m/s across, which the midpoint alone misses.
     """
-    estimate = HeldObjectEstimate(0.1)
+    estimate = HeldObjectEstimate()
     rate, lever = 0.5, np.array([0.08, 0.0, 0.0])
     for tick in range(40):
         angle = rate * tick * DT
         R = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0],
                       [0.0, 0.0, 1.0]])
-        p, v = estimate.update(np.zeros(3), R, R @ lever, np.zeros(3), DT)
+        p, v = estimate.update(np.zeros(3), R, R @ lever, np.zeros(3), DT, TAU)
     assert p == pytest.approx(R @ lever, abs=1e-9)
     assert v == pytest.approx(np.cross([0.0, 0.0, rate], R @ lever), abs=2e-3)
 
 
 def test_the_velocity_of_an_accelerating_grasp_is_the_current_one_not_half_a_tick_old():
     """Pads accelerating at 10 m/s^2 (the toss): the estimate reads a t, not a (t - dt / 2)."""
-    estimate = HeldObjectEstimate(0.1)
+    estimate = HeldObjectEstimate()
     acceleration = np.array([10.0, 0.0, 5.0])
     for tick in range(10):
         t = tick * DT
         p, v = estimate.update(0.5 * acceleration * t ** 2, np.eye(3), np.zeros(3),
-                               np.zeros(3), DT)
+                               np.zeros(3), DT, TAU)
     assert v == pytest.approx(acceleration * t, rel=1e-9)
 
 
 def test_a_hold_starts_where_the_grasp_plan_puts_the_centre_not_at_a_lagging_estimate():
     """After the impact the tracker lags (7 mm seen); the planned offset starts the hold."""
-    estimate = HeldObjectEstimate(0.1)
+    estimate = HeldObjectEstimate()
     planned = np.array([-0.05, 0.0, 0.01])
     lagging = np.array([0.4, 0.0, 0.3]) + planned - np.array([0.007, 0.0, 0.0])
-    p, _ = estimate.update(np.array([0.4, 0.0, 0.3]), np.eye(3), lagging, np.zeros(3), DT,
+    p, _ = estimate.update(np.array([0.4, 0.0, 0.3]), np.eye(3), lagging, np.zeros(3), DT, TAU,
                            planned_offset=planned)
     assert p == pytest.approx(np.array([0.4, 0.0, 0.3]) + planned)

@@ -27,9 +27,8 @@ import numpy as np
 class HeldObjectEstimate:
     """Complementary filter of a held box's centre: pad kinematics fast, mocap slow."""
 
-    def __init__(self, time_constant):
-        """Follow the tracker's offset from the pads' midpoint with time_constant [s] (> 0)."""
-        self.time_constant = float(time_constant)
+    def __init__(self):
+        """Start with no hold."""
         self.reset()
 
     def reset(self):
@@ -40,12 +39,13 @@ class HeldObjectEstimate:
         self._velocity = None
 
     def update(self, p_world_midpoint, R_world_pad, p_world_estimate, v_world_estimate, dt,
-               planned_offset=None):
+               time_constant, planned_offset=None):
         """
         Return the held box's (p (3,) [m], v (3,) [m/s]) for one tick of dt [s].
 
         p_world_midpoint: the pads' midpoint; R_world_pad (3, 3): one pad's rotation;
-        p/v_world_estimate: the tracker's estimate; planned_offset (3,) [m]: where the grasp
+        p/v_world_estimate: the tracker's estimate, which the offset follows with
+        time_constant [s] (> 0); planned_offset (3,) [m]: where the grasp
         plan puts the box's centre from the pads' midpoint, world frame (default: the
         tracker's). The first tick of a hold returns the centre there with the tracker's
         velocity.
@@ -65,7 +65,7 @@ class HeldObjectEstimate:
         velocity = mean_velocity if self._velocity is None else (
             1.5 * mean_velocity - 0.5 * self._velocity)
         self._velocity = mean_velocity
-        gain = -math.expm1(-dt / self.time_constant)
+        gain = -math.expm1(-dt / time_constant)
         self._offset = self._offset + gain * (measured_offset - self._offset)
         self._midpoint, self._R_world_pad = midpoint, R_world_pad
         return midpoint + R_world_pad @ self._offset, velocity

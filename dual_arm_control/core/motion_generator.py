@@ -55,7 +55,7 @@ class DualArmMotionGenerator:
         self._reach_speed = SpeedFilter(config.speed.time_constant)
         self._object_speed = SpeedFilter(config.toss_speed_time_constant)
         self._toss_feedback = _toss_feedback(config.toss)
-        self._held_object = HeldObjectEstimate(config.held_object_time_constant or 1.0)
+        self._held_object = HeldObjectEstimate()
         self._release_object_velocity = self._toss_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
         self._grasp_roll = 0.0
@@ -108,7 +108,6 @@ class DualArmMotionGenerator:
         self._config = config
         self._toss_feedback.integral_gain = config.toss.speed_integral_gain
         self._toss_feedback.limit_ratio = config.toss.speed_correction_limit
-        self._held_object.time_constant = config.held_object_time_constant or 1.0
         self._phase_machine.select_task(config.task)
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
@@ -136,7 +135,7 @@ class DualArmMotionGenerator:
         if held:
             p_object, v_object = self._held_object.update(
                 p_tools.mean(axis=0), R_tools[0], p_object, v_object, dt,
-                planned_offset=-R_object @ self._grasp_offset)
+                config.held_object_time_constant, planned_offset=-R_object @ self._grasp_offset)
         else:
             self._held_object.reset()
         frames = {arm: grasp_frame(arm, p_object, R_object, config.object_size,
