@@ -29,7 +29,7 @@ def first_touch_gaps(grasp_points, p_tools, R_tools, normals, pad_half_length, p
     pad length along tool x); normals (2, 3): the inward face normals. A pad tilted against
     its face touches with that corner first: synchronising the pads' centres let a pad 5-8 deg
     off its face (the face turned toward its arm's base, box yawed 20 deg) touch 10-15 ms
-    before the other.
+    before the other. Zero half extents give the gaps of the pads' centres.
     """
     corners = np.array([[length, width, 0.0] for length in (-pad_half_length, pad_half_length)
                         for width in (-pad_half_width, pad_half_width)])

@@ -297,10 +297,9 @@ class DualArmMotionGenerator:
         velocity = boosted_coordinated_velocity(field_output.velocity, speed).reshape(2, 3)
         if config.impact.synchronisation_distance > 0.0:
             normals = np.array([frames[arm].normal for arm in ARMS])
-            pad = 0.0 if config.moving_grab.enabled else 1.0
-            gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals,
-                                    pad * config.reachability.pad_half_length,
-                                    pad * config.reachability.pad_half_width)
+            pad = ((0.0, 0.0) if config.moving_grab.enabled else
+                   (config.reachability.pad_half_length, config.reachability.pad_half_width))
+            gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, *pad)
             velocity = synchronised_arrival(velocity, gaps, normals,
                                             config.impact.synchronisation_distance)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
