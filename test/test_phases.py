@@ -68,13 +68,13 @@ def toss_object_state(t, lateral=np.zeros(3)):
     return P_OBJECT_START + lateral + moving * V_RELEASE, velocity
 
 
-def place_object_state(t):
-    """Object converging to the place position, distance 0.3 exp(-(t - 0.6) / 0.1) m."""
-    direction = (P_PLACE - P_OBJECT_START) / np.linalg.norm(P_PLACE - P_OBJECT_START)
+def place_object_state(t, target=P_PLACE):
+    """Object converging to target (the place), distance 0.3 exp(-(t - 0.6) / 0.1) m."""
+    direction = (target - P_OBJECT_START) / np.linalg.norm(target - P_OBJECT_START)
     if t <= 0.6:
         return P_OBJECT_START.copy(), np.zeros(3)
     distance = 0.3 * np.exp(-(t - 0.6) / 0.1)
-    return P_PLACE - distance * direction, distance / 0.1 * direction
+    return target - distance * direction, distance / 0.1 * direction
 
 
 def lift_object_state(t):
@@ -356,16 +356,6 @@ def test_invalid_inputs_rejected():
         PhaseConfig(contact_settle_time=-0.01)
 
 
-def place_object_stalling(t):
-    """Object converging to 2 cm above the place (the arms' reach), then still there."""
-    start = P_PLACE + np.array([0.0, 0.0, 0.02])
-    if t <= 0.6:
-        return P_OBJECT_START.copy(), np.zeros(3)
-    distance = 0.3 * np.exp(-(t - 0.6) / 0.1)
-    direction = (start - P_OBJECT_START) / np.linalg.norm(start - P_OBJECT_START)
-    return start - distance * direction, distance / 0.1 * direction
-
-
 def test_a_box_the_arms_bring_no_closer_than_2_cm_is_put_down_where_it_stalls():
     """
     2 cm above the place (outside the 1.2 cm tolerance) the box stops: released 0.3 s later.
@@ -374,8 +364,9 @@ def test_a_box_the_arms_bring_no_closer_than_2_cm_is_put_down_where_it_stalls():
     the release comes place_stall_time after, on the tick; a box still converging is not.
     """
     machine = PhaseMachine(PhaseConfig(), Task.PICK_AND_PLACE)
-    record = run(machine, Scenario(object_state=place_object_stalling, contact_end=3.0),
-                 0.005, 2.0)
+    stall = P_PLACE + np.array([0.0, 0.0, 0.02])
+    scenario = Scenario(object_state=lambda t: place_object_state(t, stall), contact_end=3.0)
+    record = run(machine, scenario, 0.005, 2.0)
     release_time, release = [(t, tr) for t, tr in transitions(record)
                              if tr.target is Phase.RELEASE][0]
     slow = 0.6 + 0.1 * np.log(0.3 / 0.002)
