@@ -317,7 +317,8 @@ def run(args, domain):
 
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
-    print(f'dual_arm_bringup: ROS_DOMAIN_ID={domain}, logs in {args.out / "logs"}', flush=True)
+    print(f'dual_arm_bringup: ROS_DOMAIN_ID={domain}, {args.mode} mode, logs in '
+          f'{args.out / "logs"}', flush=True)
     recorder = (start_recorder(args.out, launcher.environment(), args.scenario)
                 if args.record else None)
     if recorder is not None and recorder.poll() is not None:

@@ -17,6 +17,7 @@ from conftest import SOURCE_ROOT
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import episode_metrics, METRIC_KEYS
+from dual_arm_control.evaluation.trial_runs import default_jobs, usable_cores
 from dual_arm_control.evaluation.trial_summary import failure_reason, summarize
 from dual_arm_control.evaluation.trials import main
 from dual_arm_control.inprocess import run_episode
@@ -349,7 +350,7 @@ def test_one_graph_trial(tmp_path, cell, ros_domain):
                             '--domain-base', ros_domain, '--out', out, timeout=240)
     folder = out / 'trial_000'
     assert code == 0, output + (folder / 'bringup.log').read_text()
-    assert f'ROS_DOMAIN_ID={ros_domain}' in (folder / 'bringup.log').read_text()
+    assert f'ROS_DOMAIN_ID={ros_domain}, lockstep mode' in (folder / 'bringup.log').read_text()
     summary = json.loads((out / 'summary.json').read_text())
     assert (summary['runner'], summary['trials'], summary['jobs']) == ('graph', 1, 1)
     assert not (folder / 'trajectory.npz').exists()
@@ -359,3 +360,27 @@ def test_one_graph_trial(tmp_path, cell, ros_domain):
     assert set(metrics) == set(inprocess)
     assert metrics['sim_duration'] == pytest.approx(2.0, abs=0.005)
     assert math.isfinite(summary['metrics']['sim_duration']['mean'])
+
+
+@pytest.mark.slow
+def test_one_realtime_trial(tmp_path, cell, ros_domain):
+    """The realtime runner: the graph paced by the wall clock, one trial at a time by default."""
+    source = write(tmp_path / 'short.yaml', toss_data(2.0, {'mass': [0.6, 0.8]}))
+    out = tmp_path / 'out'
+    code, output = run_eval('--scenario', source, '--trials', 1, '--runner', 'realtime',
+                            '--domain-base', ros_domain, '--out', out, timeout=240)
+    folder = out / 'trial_000'
+    assert code == 0, output + (folder / 'bringup.log').read_text()
+    assert f'ROS_DOMAIN_ID={ros_domain}, realtime mode' in (folder / 'bringup.log').read_text()
+    summary = json.loads((out / 'summary.json').read_text())
+    assert (summary['runner'], summary['jobs']) == ('realtime', 1)
+    metrics = json.loads((folder / 'metrics.json').read_text())
+    assert metrics['sim_duration'] == pytest.approx(2.0, abs=0.01)
+    assert metrics['watchdog_hold_count'] >= 0
+
+
+def test_realtime_trials_run_one_at_a_time_by_default():
+    """A realtime graph needs the whole machine; two side by side would miss their cycles."""
+    assert default_jobs('realtime') == 1
+    assert default_jobs('graph') == max(1, usable_cores() // 2)
+    assert default_jobs('inprocess') == usable_cores()

@@ -3,7 +3,7 @@ Running dual_arm_eval's trials: each trial scenario file with the in-process run
 
 inprocess: one single-threaded process per trial (a spawned process pool for several jobs).
 graph: one dual_arm_bringup run of the whole node graph per trial, each in a ROS domain of its
-own. Every trial leaves metrics.json (and optionally trajectory.npz) beside its scenario file.
+own; realtime: the same in realtime mode. Every trial leaves metrics.json (and optionally trajectory.npz) beside its scenario file.
 """
 
 from concurrent.futures import as_completed, ProcessPoolExecutor, ThreadPoolExecutor
@@ -41,8 +41,12 @@ def default_jobs(runner):
 
     inprocess: one trial per core (a trial is one single-threaded process). graph: one trial
     per two cores, since the six node processes of a lockstep trial keep about 1.5 cores busy.
+    realtime: one, since a realtime graph takes all the CPU it gets (docs/performance.md) and a
+    second one beside it would make both miss their cycles.
     """
     cores = usable_cores()
+    if runner == 'realtime':
+        return 1
     return cores if runner == 'inprocess' else max(1, cores // 2)
 
 
@@ -75,11 +79,12 @@ class TrialError(Exception):
     """A trial that produced no metrics; the message is the reason."""
 
 
-def run_graph_trial(scenario_file, domain_id, keep_trajectory=False, timeout=600.0):
+def run_graph_trial(scenario_file, domain_id, keep_trajectory=False, timeout=600.0,
+                    mode='lockstep'):
     """
     Run one trial scenario file with dual_arm_bringup (the whole node graph); return metrics.
 
-    The graph runs in ROS domain domain_id; the launcher's output goes to bringup.log beside
+    The graph runs in ROS domain domain_id, in mode 'lockstep' or 'realtime'; the launcher's output goes to bringup.log beside
     the scenario file. Raises TrialError when the launcher leaves no metrics.json.
     """
     trial_dir = Path(scenario_file).parent
@@ -87,7 +92,7 @@ def run_graph_trial(scenario_file, domain_id, keep_trajectory=False, timeout=600
     metrics_file.unlink(missing_ok=True)
     command = [sys.executable, '-m', 'dual_arm_control.bringup', '--scenario',
                str(scenario_file), '--out', str(trial_dir), '--domain-id', str(domain_id),
-               '--timeout', str(timeout)]
+               '--timeout', str(timeout), '--mode', mode]
     try:
         result = subprocess.run(command, capture_output=True, text=True, stdin=subprocess.DEVNULL,
                                 timeout=timeout + GRAPH_STOP_MARGIN)
@@ -134,7 +139,8 @@ def run_trials(scenario_files, runner, jobs, keep_trajectories, timeout, domain_
         def graph_trial(path):
             domain_id = domains.get()
             try:
-                return run_graph_trial(path, domain_id, keep_trajectories, timeout)
+                return run_graph_trial(path, domain_id, keep_trajectories, timeout,
+                                       'realtime' if runner == 'realtime' else 'lockstep')
             finally:
                 domains.put(domain_id)
 
