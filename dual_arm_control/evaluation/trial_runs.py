@@ -3,7 +3,8 @@ Running dual_arm_eval's trials: each trial scenario file with the in-process run
 
 inprocess: one single-threaded process per trial (a spawned process pool for several jobs).
 graph: one dual_arm_bringup run of the whole node graph per trial, each in a ROS domain of its
-own; realtime: the same in realtime mode. Every trial leaves metrics.json (and optionally trajectory.npz) beside its scenario file.
+own; realtime: the same in realtime mode. Every trial leaves metrics.json (and optionally
+trajectory.npz) beside its scenario file.
 """
 
 from concurrent.futures import as_completed, ProcessPoolExecutor, ThreadPoolExecutor
@@ -84,8 +85,9 @@ def run_graph_trial(scenario_file, domain_id, keep_trajectory=False, timeout=600
     """
     Run one trial scenario file with dual_arm_bringup (the whole node graph); return metrics.
 
-    The graph runs in ROS domain domain_id, in mode 'lockstep' or 'realtime'; the launcher's output goes to bringup.log beside
-    the scenario file. Raises TrialError when the launcher leaves no metrics.json.
+    The graph runs in ROS domain domain_id, in mode 'lockstep' or 'realtime'; the launcher's
+    output goes to bringup.log beside the scenario file. Raises TrialError when the launcher
+    leaves no metrics.json.
     """
     trial_dir = Path(scenario_file).parent
     metrics_file = trial_dir / 'metrics.json'
