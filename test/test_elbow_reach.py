@@ -21,7 +21,8 @@ ARMS = ('left', 'right')
 FOLDED_WRIST_DISTANCE = {'left': math.sqrt(0.4 ** 2 + 0.4 ** 2 - 0.4 * 0.4),
                          'right': math.sqrt(0.42 ** 2 + 0.4 ** 2 - 0.42 * 0.4)}
 # Base position plus d1 (0.34 m iiwa 7, 0.36 m iiwa 14) [m].
-SHOULDER = {'left': np.array([0.0, 0.5, 0.34]), 'right': np.array([0.0, -0.5, 0.36])}
+SHOULDER = {arm: load_cell().arm(arm).base_position + [0.0, 0.0, height]
+            for arm, height in (('left', 0.34), ('right', 0.36))}
 # Tool point to wrist along the flange axis: A6 -> flange 0.126 m, pad 0.115 m.
 WRIST_TO_TOOL = 0.241
 TOSS_VELOCITY = np.array([0.7603, 0.0, 0.3801])

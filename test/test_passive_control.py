@@ -170,13 +170,23 @@ def test_contact_wrench_is_pushed_with_its_own_sign(arm):
 
 
 def test_null_space_torque_does_no_work_on_tool_motion(arm):
+    """
+    The projected torque leaves the tool alone: J tau is what leaks through the damped projector.
+
+    At the posture target only the null-space damping acts, tau_in = -D dq; the projector
+    N = I - J^T (J J^T + d^2 I)^-1 J lets d^2 / sigma_min^2 of J tau_in through (about 1.5e-4
+    here, sigma_min of J about 0.08), so 1e-3 is a bound with margin, not a tuned figure.
+    """
     _, model, q_home = arm
-    controller = PassiveController(model, q_home)
     rng = np.random.default_rng(2)
     q = q_home + rng.uniform(-0.3, 0.3, 7)
+    controller = PassiveController(model, q)
     jacobian = model.tool_jacobian(q)
-    torque = controller.null_space_torque(jacobian, q, rng.normal(size=7))
-    assert np.abs(jacobian @ torque).max() < 1e-4 * np.abs(torque).max()
+    dq = rng.normal(size=7)
+    torque_in = -controller.config.null_space_damping * dq
+    torque = controller.null_space_torque(jacobian, q, dq)
+    assert np.abs(jacobian @ torque).max() < 1e-3 * np.abs(jacobian @ torque_in).max()
+    assert np.abs(torque).max() > 0.05 * np.abs(torque_in).max()
 
 
 def test_saturation_scales_the_control_torque_within_limits():

@@ -21,7 +21,8 @@ CUBE_HEIGHT = 0.32
 # shoulder (A2 axis): the law of cosines over the upper arm and forearm (URDF d3, d5) [m].
 SHOULDER_WRIST_MIN = {'left': math.sqrt(0.4 ** 2 + 0.4 ** 2 - 0.4 * 0.4),
                       'right': math.sqrt(0.42 ** 2 + 0.4 ** 2 - 0.42 * 0.4)}
-SHOULDER = {'left': np.array([0.0, 0.5, 0.34]), 'right': np.array([0.0, -0.5, 0.36])}
+SHOULDER = {arm: load_cell().arm(arm).base_position + [0.0, 0.0, height]
+            for arm, height in (('left', 0.34), ('right', 0.36))}
 # Tool point to wrist along the tool axis: A6 -> A7 0.081 m, flange 0.045 m, pad 0.115 m.
 WRIST_TO_TOOL = 0.241
 
@@ -104,7 +105,7 @@ def test_a_rolled_pad_rises_to_clear_the_support_or_is_left_out():
 
 def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
     """
-    At 15 deg of yaw, 3 cm closer than nominal, the left face turns toward the left base.
+    At 25 deg of yaw, 3 cm closer than nominal, the left face turns toward the left base.
 
     The unrolled pad cannot shift far enough along the face for the left elbow; the quarter
     rolled pad, 0.05 m narrower along the face, can: the plan is rolled, both tools reach
@@ -113,7 +114,7 @@ def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
     config = ReachabilityConfig()
     home = {arm: cell.arm(arm).q_home for arm in ARMS}
     p_world_object = np.array([0.38, 0.0, CUBE_HEIGHT])
-    R_world_object = yaw_rotation(math.radians(15.0))
+    R_world_object = yaw_rotation(math.radians(25.0))
     plan = plan_grasp(models, home, p_world_object, R_world_object, CUBE, config, 0.02)
     assert plan.reachable and plan.reason == ''
     assert abs(plan.roll) == pytest.approx(0.5 * math.pi)
@@ -137,13 +138,13 @@ def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
 
 def test_a_box_no_flush_pad_can_reach_is_still_refused(models, cell):
     """
-    25 deg of yaw, 6 cm closer than nominal: the refusal is genuine.
+    25 deg of yaw, 7 cm closer than nominal: the refusal is genuine.
 
     Whatever the pad's roll, its tool axis is the face normal, so the wrist sits 0.241 m out
     from the contact point; even with the contact point at the face's front edge the left
     wrist stays closer to its shoulder than the elbow can fold, and the planner refuses.
     """
-    p_world_object = np.array([0.35, 0.0, CUBE_HEIGHT])
+    p_world_object = np.array([0.34, 0.0, CUBE_HEIGHT])
     R_world_object = yaw_rotation(math.radians(25.0))
     home = {arm: cell.arm(arm).q_home for arm in ARMS}
     for shift in np.linspace(-0.1, 0.1, 21):

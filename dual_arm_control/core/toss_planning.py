@@ -26,14 +26,14 @@ class ReleasePlanningConfig:
     """Where and how fast the object may be released (world frame, SI units)."""
 
     x_range: tuple = setting(
-        (0.60, 0.72), 'Release region along world x (low, high): the arms hold the paper cube '
+        (0.60, 0.68), 'Release region along world x (low, high): the arms hold the paper cube '
         'anywhere in the region within their joint limits (checked by test_toss_planning with '
         'core.reachability).', unit='m', low=-3.0, high=3.0, size=2)
     y_range: tuple = setting(
         (-0.12, 0.12), 'Release region along world y (low, high).',
         unit='m', low=-3.0, high=3.0, size=2)
     z_range: tuple = setting(
-        (0.40, 0.55), 'Release region along world z (low, high).',
+        (0.40, 0.50), 'Release region along world z (low, high).',
         unit='m', low=-3.0, high=3.0, size=2)
     grid_step: float = setting(
         0.02, 'Spacing of the candidate release points.', unit='m', low=0, high=1.0, low_open=True)
