@@ -1,5 +1,6 @@
 """Cooperative manipulation: eq. 7 / Proposition 3, toss DS (eqs. 8-9), lift and place."""
 
+from dataclasses import replace
 import math
 
 from dual_arm_control.core.cooperative import (
@@ -107,7 +108,8 @@ def test_rotating_object_carries_the_hands_consistently():
 
 def test_the_carried_object_turns_to_its_release_orientation():
     """omega^o of eq. 8 from the orientation DS: it turns the object about the error's axis."""
-    toss = TossConfig(orientation='given', release_rpy_deg=(0.0, 0.0, 20.0), orientation_rate=10.0)
+    toss = TossConfig(orientation='given', release_rpy_deg=(0.0, 0.0, 20.0),
+                      release_orientation_rate=10.0)
     R_desired = release_rotation(toss)
     np.testing.assert_allclose(R_desired, rpy_to_matrix((0.0, 0.0, math.radians(20.0))))
     dynamics = object_orientation_ds(toss, max_angular_speed=3.0)
@@ -124,6 +126,13 @@ def test_the_carried_object_turns_to_its_release_orientation():
         R_object = rotation_exp(omega * dt) @ R_object
     # exp(-10 * 0.4) = 1.8 %; the first steps are saturated, so allow 5 % of the start.
     assert np.linalg.norm(rotation_log(R_desired @ R_object.T)) <= 0.05 * initial_error
+
+
+def test_a_given_release_orientation_is_turned_to_at_its_own_rate():
+    given = TossConfig(orientation='given', orientation_rate=5.0, release_orientation_rate=20.0)
+    held = replace(given, orientation='hold')
+    assert object_orientation_ds(given, 3.0).convergence_rates == (20.0,) * 3
+    assert object_orientation_ds(held, 3.0).convergence_rates == (5.0,) * 3
 
 
 def test_toss_attractor_and_target_fields_eq_9():
