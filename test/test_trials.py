@@ -342,41 +342,30 @@ def test_two_inprocess_trials_in_parallel(tmp_path, cell):
 
 
 @pytest.mark.slow
-def test_one_graph_trial(tmp_path, cell, ros_domain):
-    """The graph runner: dual_arm_bringup in the given domain leaves the same metric keys."""
+@pytest.mark.parametrize('runner, mode', [('graph', 'lockstep'), ('realtime', 'realtime')])
+def test_one_graph_trial(tmp_path, cell, ros_domain, runner, mode):
+    """
+    The graph runners: dual_arm_bringup in the given domain leaves the same metric keys.
+
+    graph runs it in lockstep, realtime paced by the wall clock; one trial, one job.
+    """
     source = write(tmp_path / 'short.yaml', toss_data(2.0, {'mass': [0.6, 0.8]}))
     out = tmp_path / 'out'
-    code, output = run_eval('--scenario', source, '--trials', 1, '--runner', 'graph',
+    code, output = run_eval('--scenario', source, '--trials', 1, '--runner', runner,
                             '--domain-base', ros_domain, '--out', out, timeout=240)
     folder = out / 'trial_000'
     assert code == 0, output + (folder / 'bringup.log').read_text()
-    assert f'ROS_DOMAIN_ID={ros_domain}, lockstep mode' in (folder / 'bringup.log').read_text()
+    assert f'ROS_DOMAIN_ID={ros_domain}, {mode} mode' in (folder / 'bringup.log').read_text()
     summary = json.loads((out / 'summary.json').read_text())
-    assert (summary['runner'], summary['trials'], summary['jobs']) == ('graph', 1, 1)
+    assert (summary['runner'], summary['trials'], summary['jobs']) == (runner, 1, 1)
     assert not (folder / 'trajectory.npz').exists()
     metrics = json.loads((folder / 'metrics.json').read_text())
     trial = load_scenario(folder / 'scenario.yaml', cell)
     inprocess = episode_metrics(trial, run_episode(trial, cell=cell).trajectory, cell)
     assert set(metrics) == set(inprocess)
-    assert metrics['sim_duration'] == pytest.approx(2.0, abs=0.005)
+    # Within one 2 ms FRI cycle of the scenario's duration, in either mode.
+    assert metrics['sim_duration'] == pytest.approx(2.0, abs=0.0025)
     assert math.isfinite(summary['metrics']['sim_duration']['mean'])
-
-
-@pytest.mark.slow
-def test_one_realtime_trial(tmp_path, cell, ros_domain):
-    """The realtime runner: the graph paced by the wall clock, one trial at a time by default."""
-    source = write(tmp_path / 'short.yaml', toss_data(2.0, {'mass': [0.6, 0.8]}))
-    out = tmp_path / 'out'
-    code, output = run_eval('--scenario', source, '--trials', 1, '--runner', 'realtime',
-                            '--domain-base', ros_domain, '--out', out, timeout=240)
-    folder = out / 'trial_000'
-    assert code == 0, output + (folder / 'bringup.log').read_text()
-    assert f'ROS_DOMAIN_ID={ros_domain}, realtime mode' in (folder / 'bringup.log').read_text()
-    summary = json.loads((out / 'summary.json').read_text())
-    assert (summary['runner'], summary['jobs']) == ('realtime', 1)
-    metrics = json.loads((folder / 'metrics.json').read_text())
-    assert metrics['sim_duration'] == pytest.approx(2.0, abs=0.01)
-    assert metrics['watchdog_hold_count'] >= 0
 
 
 def test_realtime_trials_run_one_at_a_time_by_default():
