@@ -17,8 +17,9 @@ from conftest import SOURCE_ROOT
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import episode_metrics, METRIC_KEYS
+from dual_arm_control.evaluation.trial_plots import plot_batch
 from dual_arm_control.evaluation.trial_runs import default_jobs, usable_cores
-from dual_arm_control.evaluation.trial_summary import failure_reason, summarize
+from dual_arm_control.evaluation.trial_summary import failure_reason, summarize, TrialOutcome
 from dual_arm_control.evaluation.trials import main
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.randomization import Randomization
@@ -218,6 +219,15 @@ def test_document_round_trip_of_shipped_scenarios(tmp_path, cell, path):
     trial = sample_trial(scenario, 5, cell)
     written = write(tmp_path / 'trial.yaml', scenario_document(trial))
     assert_same(load_scenario(written, cell), trial)
+
+
+def test_a_batch_where_no_trial_touched_the_box_is_still_plotted(tmp_path, cell):
+    """No trial with a plotted metric (nothing reached the box): no empty sensitivity figure."""
+    scenario = load_scenario(write(tmp_path / 'short.yaml', toss_data(2.0, RANGES)), cell)
+    trials = [sample_trial(scenario, index, cell) for index in range(2)]
+    untouched = dict.fromkeys(METRIC_KEYS, None) | {'success': False}
+    outcomes = [TrialOutcome(0, dict(untouched)), TrialOutcome(1, error='no metrics')]
+    assert plot_batch(outcomes, trials, scenario, tmp_path, cell) == []
 
 
 def test_summarize_synthetic_trials():

@@ -137,7 +137,7 @@ def plot_batch(outcomes, trials, scenario, out_dir, cell):
         _plot_container_landings(outcomes, trials, out_dir / 'container_landings.png')
         written.append('container_landings.png')
     drawn = [randomized_values(scenario, trial) for trial in trials]
-    if drawn and drawn[0]:
+    if drawn and drawn[0] and any(_values(outcomes, key) for key in SENSITIVITY_METRICS):
         _plot_sensitivity(outcomes, drawn, out_dir / 'sensitivity.png')
         written.append('sensitivity.png')
     return written
