@@ -137,8 +137,7 @@ def plot_batch(outcomes, trials, scenario, out_dir, cell):
         _plot_container_landings(outcomes, trials, out_dir / 'container_landings.png')
         written.append('container_landings.png')
     drawn = [randomized_values(scenario, trial) for trial in trials]
-    if drawn and drawn[0] and any(_values(outcomes, key) for key in SENSITIVITY_METRICS):
-        _plot_sensitivity(outcomes, drawn, out_dir / 'sensitivity.png')
+    if drawn and drawn[0] and _plot_sensitivity(outcomes, drawn, out_dir / 'sensitivity.png'):
         written.append('sensitivity.png')
     return written
 
@@ -200,9 +199,12 @@ def _plot_sensitivity(outcomes, drawn, path):
     Each pass/fail metric against each randomized quantity (green: trial passed, red: failed).
 
     A trial without the metric (no contact, no landing) is an x at the top of its panel.
+    Return whether the figure was written: not when no trial has any of the metrics.
     """
     names = list(drawn[0])
     rows = [key for key in SENSITIVITY_METRICS if _values(outcomes, key)]
+    if not rows:
+        return False
     figure, axes = plt.subplots(len(rows), len(names), figsize=(3.6 * len(names), 3 * len(rows)),
                                 sharex='col', sharey='row', squeeze=False)
     for row, key in zip(axes, rows):
@@ -224,6 +226,7 @@ def _plot_sensitivity(outcomes, drawn, path):
     for axis, name in zip(axes[-1], names):
         axis.set_xlabel(name)
     save_figure(figure, path)
+    return True
 
 
 def _plot_grasp(outcomes, path):
