@@ -45,9 +45,9 @@ def default_jobs(runner):
     realtime: one, since a realtime graph takes all the CPU it gets (docs/performance.md) and a
     second one beside it would make both miss their cycles.
     """
-    cores = usable_cores()
     if runner == 'realtime':
         return 1
+    cores = usable_cores()
     return cores if runner == 'inprocess' else max(1, cores // 2)
 
 
