@@ -11,15 +11,15 @@ import math
 
 from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.geometry import quat_xyzw_to_matrix, rotation_log
+from dual_arm_control.core.geometry import matrix_to_rpy, quat_xyzw_to_matrix, rotation_log
 from dual_arm_control.core.impact import clearance_limited_direction, ImpactConfig
-from dual_arm_control.core.manipulation import TossConfig
+from dual_arm_control.core.manipulation import PlaceConfig, TossConfig
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.reachability import (grasp_shifts, plan_grasp,
                                                 ReachabilityConfig)
 from dual_arm_control.core.wrench_distribution import (grip_normal_force, qp_config_for_mass,
                                                        WrenchDistributorConfig)
-from dual_arm_control.core.wrench_qp import ContactWrenchQP, NORMAL_FORCE_LIMIT
+from dual_arm_control.core.wrench_qp import ContactWrenchQP, NORMAL_FORCE_LIMIT, WrenchQPConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.episode import episode_metrics
 from dual_arm_control.evaluation.metrics import tilt_degrees
@@ -348,9 +348,10 @@ def test_a_heavy_box_is_tossed_level_and_lands_on_target(cell):
     The 4.5 kg open box, centred: eq. 8's rotation term keeps it level through the toss.
 
     Left free in the grasp, the impact and the box's inertia as the arms swing it up pitch it
-    about the squeeze axis (2.1 deg at release measured); kept level (toss.orientation, the
-    rotation term on the tracked box) it leaves within 1 deg of upright (0.3 measured). Both
-    land within the 5 cm of a successful toss, held without slipping.
+    about the squeeze axis (1.0 deg at release measured; 2.1 under a grip designed for mu 0.9);
+    kept level (toss.orientation, the rotation term on the tracked box) it leaves within 0.5 deg
+    of upright (0.1 measured). Both land within the 5 cm of a successful toss, held without
+    slipping.
     """
     scenario = load_scenario('paper_toss', cell=cell)
     spec = load_catalogue()['open_box']
@@ -366,7 +367,7 @@ def test_a_heavy_box_is_tossed_level_and_lands_on_target(cell):
         release = metrics_index(data['t'], metrics['t_release'])
         results[mode] = (tilt_degrees(data['object_quat_xyzw'][release]), metrics)
     free_tilt, level_tilt = results['free'][0], results['level'][0]
-    assert level_tilt <= 1.0 and free_tilt >= level_tilt + 1.0
+    assert level_tilt <= 0.5 and free_tilt >= level_tilt + 0.5
     for _, metrics in results.values():
         assert metrics['landing_error'] <= 0.05 and metrics['max_slip'] <= 0.01
         assert metrics['success']
@@ -421,10 +422,11 @@ def test_a_six_kilogram_box_stays_on_both_pads_while_carried(cell, monkeypatch):
 
     Accelerating it toward the 0.85 m/s release turns it about the squeeze axis on the pads'
     edges. Pads that resist twisting as flat patches (mu N times the pad's mean radius of
-    0.048 m, sim_bridge.scene) keep it flush: a pad loses contact a few times at most (4
-    measured). Resisting as a point-like contact (0.02 m), the box rocks between pad corners
-    and each pad loses contact 20 times or more in the same time (34 measured), which the
-    grasp detection reads as a grasp that never settles.
+    0.048 m, sim_bridge.scene) keep it flush: a pad loses contact a few times at most. Under
+    a grip designed for mu 0.9 (a lighter squeeze than the default's 0.6), pads resisting as
+    point-like contacts (0.02 m) let the box rock between pad corners: each pad loses contact
+    20 times or more (32 and 36 measured, against 3 and 4 as flat patches, none under the
+    default grip), which the grasp detection reads as a grasp that never settles.
     """
     scenario = load_scenario('paper_toss', cell=cell)
     heavy = replace(scenario, object=replace(scenario.object, mass=6.0))
@@ -433,6 +435,29 @@ def test_a_six_kilogram_box_stays_on_both_pads_while_carried(cell, monkeypatch):
     assert metrics['success'] and metrics['max_slip'] <= 0.005
     carry = metrics['t_release'] - max(metrics['t_contact_left'], metrics['t_contact_right'])
     assert max(contact_breaks(data, carry)) <= 8
+    light_grip = RunnerConfig(wrench=WrenchDistributorConfig(
+        qp=WrenchQPConfig(friction_coefficient=0.9)))
+    data = run_episode(heavy, light_grip, cell).trajectory
+    assert max(contact_breaks(data, carry)) <= 8
     monkeypatch.setattr(scene, 'pad_torsion_arm', lambda half_length, half_width: 0.02)
-    data = run_episode(heavy, RunnerConfig(), cell).trajectory
+    data = run_episode(heavy, light_grip, cell).trajectory
     assert min(contact_breaks(data, carry)) >= 20
+
+
+@pytest.mark.parametrize('place_yaw_deg', [0.0, 10.0])
+def test_a_yawed_box_is_put_down_at_the_place_yaw(cell, place_yaw_deg):
+    """
+    The paper cube picked up yawed 20 deg is turned while carried and put down at place.yaw_deg.
+
+    Measured: 5.6 deg for 0 and 8.5 deg for 10. The carry turns it to within 2 deg; the last
+    few degrees come back while the arms, near the end of their reach at the place, set it
+    down. Left unturned it would stay near 20 deg, outside the 7 deg allowed here.
+    """
+    scenario = load_scenario('paper_place', cell=cell)
+    yawed = replace(scenario, object=replace(scenario.object, yaw=math.radians(20.0)))
+    base = MotionGeneratorConfig(place=PlaceConfig(yaw_deg=place_yaw_deg))
+    data = run_episode(yawed, config=RunnerConfig(motion_base=base), cell=cell).trajectory
+    metrics = episode_metrics(yawed, data, cell)
+    final_yaw = math.degrees(matrix_to_rpy(quat_xyzw_to_matrix(data['object_quat_xyzw'][-1]))[2])
+    assert metrics['success']
+    assert abs(final_yaw - place_yaw_deg) <= 7.0

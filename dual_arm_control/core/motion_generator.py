@@ -25,22 +25,20 @@ from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
                                                 desired_relative_velocity, level_rotation,
                                                 lift_velocity, object_angular_velocity,
-                                                object_orientation_ds, place_velocity,
-                                                release_rotation, release_velocity,
-                                                toss_geometry, toss_velocity)
+                                                object_orientation_ds, place_rotation,
+                                                place_velocity, release_rotation,
+                                                release_velocity, toss_geometry, toss_velocity)
 from dual_arm_control.core.motion_signals import ArmCommand, DeferredMapping, MotionOutput
 from dual_arm_control.core.moving_grab import (belt_feed_forward, decayed_belt_velocity,
                                                filtered_belt_velocity)
-from dual_arm_control.core.orientation import (intermediate_target_orientation,
-                                               orientation_coupling,
-                                               orientation_ds_angular_velocity)
+from dual_arm_control.core.orientation import (
+    intermediate_target_orientation, orientation_coupling, orientation_ds_angular_velocity)
 from dual_arm_control.core.phases import (Phase, PhaseInputs, PhaseMachine, PhaseMachineOutput,
                                           Task)
 from dual_arm_control.core.release import clear_of_the_box
-from dual_arm_control.core.speed_shaping import (boosted_coordinated_velocity,
-                                                 boosted_velocity, reach_speed,
-                                                 saturated_velocity, SpeedErrorIntegrator,
-                                                 SpeedFilter)
+from dual_arm_control.core.speed_shaping import (
+    boosted_coordinated_velocity, boosted_velocity, reach_speed, saturated_velocity,
+    SpeedErrorIntegrator, SpeedFilter)
 from dual_arm_control.core.validation import finite_array
 import numpy as np
 
@@ -112,6 +110,7 @@ class DualArmMotionGenerator:
         self._toss_geometry = toss_geometry(config.toss, config.coordination)
         self._release_velocity = release_velocity(config.toss)
         self._release_rotation = release_rotation(config.toss)
+        self._place_rotation = place_rotation(config.place)
         self._object_orientation_ds = object_orientation_ds(
             config.toss, config.orientation.max_angular_speed)
         self._standby_positions = np.asarray(config.standby_positions, dtype=float)
@@ -266,11 +265,14 @@ class DualArmMotionGenerator:
         return saturated_velocity(velocity, speed)
 
     def _object_angular_velocity(self, R_object, phase):
-        """Return omega^o (3,) [rad/s]: the object's orientation while tossed (eq. 8)."""
+        """Return omega^o (3,) [rad/s]: the object's orientation while tossed or placed (eq. 8)."""
         config = self._config
         mode = config.toss.orientation
         if phase is not Phase.MANIPULATE:
             self._grasped_rotation = None
+        if phase is Phase.MANIPULATE and config.task is Task.PICK_AND_PLACE:
+            return object_angular_velocity(R_object, self._place_rotation,
+                                           self._object_orientation_ds)
         if phase is not Phase.MANIPULATE or config.task not in TOSS_TASKS or mode == 'free':
             return np.zeros(3)
         if mode == 'given':

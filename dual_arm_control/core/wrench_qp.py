@@ -87,7 +87,10 @@ class WrenchQPConfig:
     """
 
     friction_coefficient: float = setting(
-        0.9, 'Coulomb friction mu between pad and object; pyramid half-width mu / sqrt(2).',
+        0.6, 'Coulomb friction mu between pad and object; pyramid half-width mu / sqrt(2). The '
+        'grip is designed for the lowest friction the pads may meet, not a typical one: '
+        "0.6, the low end of the catalogue scenarios' 0.6-1.0 (catalogue_random, seed 11, "
+        '300 trials: 247 succeed and no grasp fails to hold, against 242 and 9 with mu 0.9).',
         low=0, high=5.0, low_open=True)
     torsion_arm: float = setting(
         0.02, "gamma_t: torsional friction limit |m_z| <= gamma_t f_z; below the pads' real "
