@@ -195,15 +195,20 @@ def test_solution_is_the_certified_optimum_of_eq_10():
         assert primal_violation < 1e-6
 
 
-@pytest.mark.parametrize('mass, expected_squeeze', [
-    (0.7, 30.0),                                          # friction allows the minimum squeeze
-    (3.0, 30.0),                                          # m g / 2 = 14.7 N < 0.636 * 30 N
-    (5.0, 5.0 * GRAVITY / 2.0 / (0.9 / math.sqrt(2.0))),  # 38.5 N: friction needs more
+@pytest.mark.parametrize('mass, friction_needs_more', [
+    (0.7, False),   # m g / 2 = 3.4 N of tangential force: the minimum squeeze holds it
+    (2.0, False),   # 9.8 N < 0.42 * 30 N (mu 0.6)
+    (3.5, True),    # 17.2 N needs 40.5 N at mu 0.6, within the 45 N bound
 ])
-def test_squeeze_is_the_minimum_friction_requires(mass, expected_squeeze):
+def test_squeeze_is_the_minimum_friction_requires(mass, friction_needs_more):
     # Horizontal pads at the height of the centre of mass holding a box against gravity: by
     # symmetry each pad carries m g / 2 tangentially, so the least normal force is
     # max(f_min, m g / (2 mu / sqrt 2)) and the minimal-internal-force distribution uses it.
+    config = WrenchQPConfig()
+    friction_force = mass * GRAVITY / 2.0 / (config.friction_coefficient / math.sqrt(2.0))
+    expected_squeeze = max(config.min_normal_force, friction_force)
+    assert (friction_force > config.min_normal_force) == friction_needs_more
+    assert expected_squeeze <= config.max_normal_force
     contacts = {}
     for arm, sign in (('left', 1.0), ('right', -1.0)):
         z_axis = np.array([0.0, -sign, 0.0])
@@ -211,7 +216,7 @@ def test_squeeze_is_the_minimum_friction_requires(mass, expected_squeeze):
                                        z_axis))
         contacts[arm] = PadContact(np.array([0.5, sign * 0.1, 0.3]), R_world_pad, 0.0)
     object_wrench = np.array([0.0, 0.0, mass * GRAVITY, 0.0, 0.0, 0.0])
-    result = ContactWrenchQP().contact_wrenches(object_wrench, [0.5, 0.0, 0.3], contacts)
+    result = ContactWrenchQP(config).contact_wrenches(object_wrench, [0.5, 0.0, 0.3], contacts)
     assert result.feasible
     for arm in PAD_ORDER:
         force, moment = pad_wrench_in_pad_frame(result.wrenches[arm], contacts[arm])
