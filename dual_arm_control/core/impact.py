@@ -58,6 +58,12 @@ class ImpactConfig:
         'in the twin, without -> with: contact-time gap p95 14 -> 10 ms, success 144 -> 175 (182 '
         'reachable), both impact speeds within 10 % of 0.5 m/s in 180 of 182 grasps; at 0.2-0.25 '
         'm it made gaps worse (p95 14-18 ms).', unit='m', low=0, high=2.0)
+    synchronisation_max_speedup: float = setting(
+        1.35, 'Largest factor by which the synchroniser speeds up the arm behind. The pad of an '
+        'arm whose elbow is near its limit stays a few degrees off its face and its corner '
+        'leads: catalogue_random (seed 11, 300 trials) at 1.2 / 1.35 / 1.5: contact-time gap '
+        'p95 10 / 6 / 8 ms, 11 / 4 / 2 trials over 10 ms, success 252 / 259 / 258, impact '
+        'speed within 10 % for 87.5 / 84.9 / 75.6 % of the pads.', low=1.0, high=3.0)
     region: ModulationRegionConfig = ModulationRegionConfig()
 
     def __post_init__(self):

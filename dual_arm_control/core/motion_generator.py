@@ -303,7 +303,8 @@ class DualArmMotionGenerator:
                    (config.reachability.pad_half_length, config.reachability.pad_half_width))
             gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, *pad)
             velocity = synchronised_arrival(velocity, gaps, normals,
-                                            config.impact.synchronisation_distance)
+                                            config.impact.synchronisation_distance,
+                                            config.impact.synchronisation_max_speedup)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)
