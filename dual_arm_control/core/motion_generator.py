@@ -1,14 +1,13 @@
 """
 The dual-arm motion generator: one tick of phases, contact, reach-with-impact and object DS.
 
-Composes the paper's pieces into the per-arm commands of one DS tick (section II-III, appendix
-A): FT compensation and contact detection, the phase machine, the coordinated modulated DS with
-impact (eqs. 1-6), the object DS of the task (eqs. 7-9, lift, place), the orientation DS, and
-release / retract motions. Time enters as dt; nothing reads a clock.
+The paper's pieces as the per-arm commands of one DS tick (sections II-III, appendix A): FT
+compensation, contact, phases, the coordinated modulated DS with impact (eqs. 1-6), the task's
+object DS (eqs. 7-9, lift, place), the orientation DS, release and retract. Time enters as dt.
 
-halt() stops the task where it is until a reset or go-home request (an arm's controller is lost,
-the robot holds that arm): the phase no longer changes, a grasped box stays squeezed by the
-living arm against the held one and its wrench QP share, otherwise the tools hold their poses.
+halt() stops the task until a reset or go-home request (an arm's controller is lost, the robot
+holds that arm): the phase stays, a grasped box stays squeezed by the living arm against the held
+one and its wrench QP share, otherwise the tools hold their poses.
 """
 
 from dataclasses import replace
@@ -299,12 +298,13 @@ class DualArmMotionGenerator:
         velocity = boosted_coordinated_velocity(field_output.velocity, speed).reshape(2, 3)
         if config.impact.synchronisation_distance > 0.0:
             normals = np.array([frames[arm].normal for arm in ARMS])
-            pad = ((0.0, 0.0) if config.moving_grab.enabled else
-                   (config.reachability.pad_half_length, config.reachability.pad_half_width))
+            moving, reach = config.moving_grab, config.reachability
+            pad = (0.0, 0.0) if moving.enabled else (reach.pad_half_length, reach.pad_half_width)
             gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, *pad)
-            velocity = synchronised_arrival(velocity, gaps, normals,
-                                            config.impact.synchronisation_distance,
-                                            config.impact.synchronisation_max_speedup)
+            velocity = synchronised_arrival(
+                velocity, gaps, normals, config.impact.synchronisation_distance,
+                moving.synchronisation_max_speedup if moving.enabled
+                else config.impact.synchronisation_max_speedup)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)
