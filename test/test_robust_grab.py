@@ -230,16 +230,15 @@ def test_the_arm_that_would_touch_last_catches_up_with_the_other():
     velocity = np.array([[0.1, -0.4, 0.0], [0.1, 0.4, 0.0]])
     # Left 5 cm from its face, right 5.5 cm, both within the inner half of the horizon: at
     # equal closing speeds right would touch 10 % later, so it gets 10 % more speed.
-    faster = synchronised_arrival(velocity, [0.05, 0.055], normals, horizon=0.25)
+    faster = synchronised_arrival(velocity, [0.05, 0.055], normals, 0.25, fastest=1.35)
     np.testing.assert_array_equal(faster[0], velocity[0])
     np.testing.assert_allclose(faster[1], 1.1 * velocity[1])
     times = np.array([0.05, 0.055]) / np.einsum('ij,ij->i', faster, normals)
     assert times[0] == pytest.approx(times[1])
     # Far from the faces, or already in step, nothing changes.
-    np.testing.assert_array_equal(synchronised_arrival(velocity, [0.30, 0.40], normals, 0.25),
-                                  velocity)
-    np.testing.assert_array_equal(synchronised_arrival(velocity, [0.05, 0.05], normals, 0.25),
-                                  velocity)
+    for gaps in ([0.30, 0.40], [0.05, 0.05]):
+        np.testing.assert_array_equal(synchronised_arrival(velocity, gaps, normals, 0.25, 1.35),
+                                      velocity)
     # Never faster than the cap.
     capped = synchronised_arrival(velocity, [0.001, 0.1], normals, 0.25, fastest=1.2)
     np.testing.assert_allclose(capped[1], 1.2 * velocity[1])

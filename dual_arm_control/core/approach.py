@@ -41,7 +41,7 @@ def first_touch_gaps(grasp_points, p_tools, R_tools, normals, pad_half_length, p
     return gaps
 
 
-def synchronised_arrival(velocity, gaps, normals, horizon, fastest=1.35):
+def synchronised_arrival(velocity, gaps, normals, horizon, fastest):
     """
     Return velocity (2, 3) [m/s], the arm that would touch last sped up to touch with the other.
 
