@@ -236,7 +236,7 @@ def _synthetic_results(root):
            'limited': False, 'repeats': 1, 'summary': summary,
            'equal_impact_probe': probe,
            'settings': {'toss_scenario': 'paper_toss', 'place_scenario': 'paper_place',
-                        'place_target': [0.75, -0.1, 0.25],
+                        'place_target': [0.75, 0.0, 0.25],
                         'toss_release_position': [0.68, 0.0, 0.45], 'impact_speed': 0.5,
                         'place_impact_speed': 0.11, 'place_slowdown': [0.05, 0.25],
                         'place_duration': 8.0},

@@ -53,7 +53,7 @@ def test_paper_toss_values(cell):
 
 def test_place_rests_on_the_front_table(cell):
     scenario = load_scenario('paper_place', cell)
-    assert scenario.place == pytest.approx([0.75, -0.10, TABLE_TOP + PAPER_CUBE_HEIGHT / 2])
+    assert scenario.place == pytest.approx([0.75, 0.0, TABLE_TOP + PAPER_CUBE_HEIGHT / 2])
 
 
 def test_cube_drop_starts_five_centimetres_up(cell):

@@ -40,7 +40,7 @@ class MotionGeneratorConfig:
     object_size: tuple = setting(
         (0.2, 0.2, 0.2), 'Box edges along object x, y (the squeeze axis) and z.',
         unit='m', low=0, low_open=True, size=3)
-    standby_positions: tuple = ((0.35, 0.31, 0.80), (0.35, -0.31, 0.80))
+    standby_positions: tuple = ((0.35, 0.36, 0.80), (0.35, -0.36, 0.80))
     standby_rotations: tuple = (tuple(map(tuple, np.eye(3))), tuple(map(tuple, np.eye(3))))
     standby_gain: float = setting(
         3.0, 'Per-arm point attractor gain toward standby (and on retract).',
