@@ -143,8 +143,8 @@ def test_urdf_damping_equals_cell_damping(arm):
 def test_cell_places_arms_as_the_convention():
     cell = load_cell()
     assert cell.arm('left').model == 'iiwa7' and cell.arm('right').model == 'iiwa14'
-    assert cell.arm('left').base_position == pytest.approx([0.0, 0.6, 0.0])
-    assert cell.arm('right').base_position == pytest.approx([0.0, -0.6, 0.0])
+    assert cell.arm('left').base_position == pytest.approx([0.0, 0.65, 0.0])
+    assert cell.arm('right').base_position == pytest.approx([0.0, -0.65, 0.0])
     assert cell.pallet.top_height == pytest.approx(0.22)
     assert cell.front_table.top_height == pytest.approx(0.15)
     assert cell.surface_height(0.41, 0.0) == pytest.approx(0.22)

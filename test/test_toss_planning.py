@@ -114,7 +114,7 @@ def test_a_target_after_the_release_or_out_of_reach_is_refused(cell):
 
 def test_a_box_thrown_across_toward_one_arm_flies_clear_of_its_pad(cell):
     """
-    A target far to the right: the box leaves at 0.48 m/s along -y, toward the right pad.
+    A target far to the right: the box leaves at 0.65 m/s along -y, toward the right pad.
 
     The retracting pad must not be in its way: no pad touches the box between the release and
     the landing (without clear_of_the_box the right pad struck it 140 ms after the release).
@@ -123,7 +123,7 @@ def test_a_box_thrown_across_toward_one_arm_flies_clear_of_its_pad(cell):
     # toss_to_target_random trial 199: the box 2.5 cm closer, 2.6 cm right, turned -13 deg.
     box = replace(base.object, mass=0.9, position=np.array([0.386, -0.026, 0.32]), yaw=-0.228)
     scenario = replace(base, task='toss_to_target', release=None, object=box, seed=761605522,
-                       landing_target=np.array([0.96, -0.284, 0.25]))
+                       landing_target=np.array([0.92, -0.284, 0.25]))
     trajectory = run_episode(scenario, cell=cell).trajectory
     metrics = episode_metrics(scenario, trajectory, cell)
     assert metrics['release_velocity'][1] < -0.4
