@@ -30,8 +30,9 @@ class ReleasePlanningConfig:
         'anywhere in the region within their joint limits (checked by test_toss_planning with '
         'core.reachability).', unit='m', low=-3.0, high=3.0, size=2)
     y_range: tuple = setting(
-        (-0.08, 0.08), 'Release region along world y (low, high); with the bases 1.3 m apart '
-        'the iiwa7 misses the far corner (0.68, -0.12) by 6-20 mm.',
+        (-0.08, 0.12), 'Release region along world y (low, high): with the bases 1.3 m apart '
+        'the left arm (iiwa7, the shorter) misses the far right corner (0.68, -0.12) by 6-20 mm, '
+        'the right arm (iiwa14) holds the left one (0.68, 0.12).',
         unit='m', low=-3.0, high=3.0, size=2)
     z_range: tuple = setting(
         (0.40, 0.50), 'Release region along world z (low, high).',
