@@ -4,6 +4,7 @@ import math
 import xml.etree.ElementTree as ElementTree
 
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.robot_model import ArmModel
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.resources import urdf_path
@@ -200,3 +201,10 @@ def test_arm_model_rejects_bad_input():
         model.tool_pose([0.0] * 6)
     with pytest.raises(ValueError, match='NaN'):
         model.gravity_torque([math.nan] * 7)
+
+
+def test_motion_generator_standby_defaults_are_the_cells():
+    """The motion generator's standby default repeats config/cell.yaml: they must agree."""
+    cell = load_cell()
+    np.testing.assert_allclose(MotionGeneratorConfig().standby_positions,
+                               [cell.arm(arm).standby_position for arm in ('left', 'right')])
