@@ -87,3 +87,16 @@ class MotionGeneratorConfig:
         for rotation in rotations:
             if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6):
                 raise ConfigError('standby_rotations must be rotation matrices')
+
+    def arrival_synchroniser(self):
+        """
+        Return the arrival synchroniser's (pad half extents (2,) [m], largest speed-up).
+
+        Over a still box the gaps run from the pads' nearest corners (reachability's pad size)
+        and the arm behind may speed up by impact.synchronisation_max_speedup; a moving grab
+        measures from the pads' centres and keeps moving_grab.synchronisation_max_speedup.
+        """
+        if self.moving_grab.enabled:
+            return (0.0, 0.0), self.moving_grab.synchronisation_max_speedup
+        return ((self.reachability.pad_half_length, self.reachability.pad_half_width),
+                self.impact.synchronisation_max_speedup)

@@ -298,13 +298,10 @@ class DualArmMotionGenerator:
         velocity = boosted_coordinated_velocity(field_output.velocity, speed).reshape(2, 3)
         if config.impact.synchronisation_distance > 0.0:
             normals = np.array([frames[arm].normal for arm in ARMS])
-            moving, reach = config.moving_grab, config.reachability
-            pad = (0.0, 0.0) if moving.enabled else (reach.pad_half_length, reach.pad_half_width)
+            pad, fastest = config.arrival_synchroniser()
             gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, *pad)
-            velocity = synchronised_arrival(
-                velocity, gaps, normals, config.impact.synchronisation_distance,
-                moving.synchronisation_max_speedup if moving.enabled
-                else config.impact.synchronisation_max_speedup)
+            velocity = synchronised_arrival(velocity, gaps, normals,
+                                            config.impact.synchronisation_distance, fastest)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)
