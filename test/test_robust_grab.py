@@ -224,25 +224,50 @@ def test_a_pad_touching_alone_stops_pushing_into_its_face():
     assert both is commands
 
 
-def test_the_arm_that_would_touch_last_catches_up_with_the_other():
+def schedule(**changes):
+    from dual_arm_control.core.impact import ArrivalSchedule
+    return ArrivalSchedule(horizon=0.25, final_gap=0.005, gain=3.0, slowest=0.75,
+                           fastest=1.35)._replace(**changes)
+
+
+def test_the_arm_behind_speeds_up_and_the_arm_ahead_slows_down():
     from dual_arm_control.core.approach import synchronised_arrival
     normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
     velocity = np.array([[0.1, -0.4, 0.0], [0.1, 0.4, 0.0]])
     # Left 5 cm from its face, right 5.5 cm, both within the inner half of the horizon: at
-    # equal closing speeds right would touch 10 % later, so it gets 10 % more speed.
-    faster = synchronised_arrival(velocity, [0.05, 0.055], normals, 0.25, fastest=1.35)
-    np.testing.assert_array_equal(faster[0], velocity[0])
-    np.testing.assert_allclose(faster[1], 1.1 * velocity[1])
-    times = np.array([0.05, 0.055]) / np.einsum('ij,ij->i', faster, normals)
-    assert times[0] == pytest.approx(times[1])
-    # Far from the faces, or already in step, nothing changes.
-    for gaps in ([0.30, 0.40], [0.05, 0.05]):
-        np.testing.assert_array_equal(synchronised_arrival(velocity, gaps, normals, 0.25, 1.35),
-                                      velocity)
-    # Never faster than the cap.
-    capped = synchronised_arrival(velocity, [0.001, 0.1], normals, 0.25, fastest=1.2)
+    # equal closing speeds right would touch 10 % later; with gain 3 the time difference over
+    # the sum (0.005 / 0.105) gives right 14.3 % more speed and left 14.3 % less.
+    timed = synchronised_arrival(velocity, [0.05, 0.055], normals, schedule())
+    np.testing.assert_allclose(timed[0], (1.0 - 3.0 * 0.005 / 0.105) * velocity[0])
+    np.testing.assert_allclose(timed[1], (1.0 + 3.0 * 0.005 / 0.105) * velocity[1])
+    # Far from the faces, already in step, or within the final gap, nothing changes.
+    for gaps in ([0.30, 0.40], [0.05, 0.05], [0.004, 0.02]):
+        np.testing.assert_array_equal(
+            synchronised_arrival(velocity, gaps, normals, schedule()), velocity)
+    # Never beyond the caps.
+    capped = synchronised_arrival(velocity, [0.011, 0.1], normals, schedule(fastest=1.2))
     np.testing.assert_allclose(capped[1], 1.2 * velocity[1])
-    np.testing.assert_array_equal(capped[0], velocity[0])
+    np.testing.assert_allclose(capped[0], 0.75 * velocity[0])
+
+
+def test_a_gain_above_one_brings_both_pads_in_together_at_the_commanded_speed():
+    """Integrate two pads closing on their faces: the one 20 % behind catches up by contact."""
+    from dual_arm_control.core.approach import synchronised_arrival
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    velocity = np.array([[0.0, -0.4, 0.0], [0.0, 0.4, 0.0]])
+    gaps = np.array([0.05, 0.06])
+    dt, touch, speeds = 0.001, [None, None], None
+    for step in range(400):
+        timed = synchronised_arrival(velocity, gaps, normals, schedule(final_gap=0.0))
+        gaps = gaps - dt * np.einsum('ij,ij->i', timed, normals)
+        for arm in range(2):
+            if touch[arm] is None and gaps[arm] <= 0.0:
+                touch[arm] = step * dt
+                if speeds is None:
+                    speeds = np.linalg.norm(timed, axis=1) / 0.4
+    # Unsynchronised the right pad would touch 25 ms after the left.
+    assert abs(touch[0] - touch[1]) <= 0.002
+    assert np.all(np.abs(speeds - 1.0) < 0.05)
 
 
 def test_a_pad_tilted_against_its_face_is_timed_by_its_nearest_corner():

@@ -7,8 +7,9 @@ from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
 from dual_arm_control.core.speed_shaping import (
-    boosted_coordinated_velocity, boosted_velocity, profile_speed, reach_speed,
-    saturated_velocity, speed_blend_weight, SpeedErrorIntegrator, SpeedFilter, SpeedProfileConfig)
+    arm_velocities_near_object, boosted_coordinated_velocity, boosted_velocity, profile_speed,
+    reach_speed, saturated_velocity, speed_blend_weight, SpeedErrorIntegrator, SpeedFilter,
+    SpeedProfileConfig)
 import numpy as np
 import pytest
 
@@ -133,3 +134,17 @@ def test_a_live_parameter_change_keeps_the_speed_loop_correction():
                                   max_linear_speed=1.2))
     assert generator._toss_feedback.correction == integrated
     assert generator._toss_feedback.integral_gain == 30.0
+
+
+def test_near_the_object_each_arm_moves_at_the_speed_far_from_it_the_arms_keep_their_ratio():
+    config = SpeedProfileConfig()
+    # The coordinated field asks the left arm (waiting for the right) for half the speed.
+    field = np.array([0.0, -0.2, 0.0, 0.0, 0.4, 0.0])
+    far = arm_velocities_near_object(field, 0.85, config.far_distance, config)
+    np.testing.assert_allclose(np.linalg.norm(far, axis=1), [0.425, 0.85])
+    near = arm_velocities_near_object(field, 0.5, config.near_distance, config)
+    np.testing.assert_allclose(near, [[0.0, -0.5, 0.0], [0.0, 0.5, 0.0]])
+    between = arm_velocities_near_object(
+        field, 0.6, 0.5 * (config.near_distance + config.far_distance), config)
+    assert 0.3 < np.linalg.norm(between[0]) < 0.6
+    np.testing.assert_allclose(np.linalg.norm(between[1]), 0.6)

@@ -41,33 +41,33 @@ def first_touch_gaps(grasp_points, p_tools, R_tools, normals, pad_half_length, p
     return gaps
 
 
-def synchronised_arrival(velocity, gaps, normals, horizon, fastest):
+def synchronised_arrival(velocity, gaps, normals, schedule):
     """
-    Return velocity (2, 3) [m/s], the arm that would touch last sped up to touch with the other.
+    Return velocity (2, 3) [m/s] rescaled per arm so that both pads reach their faces together.
 
-    The coordinated DS (eq. 4) synchronises the commanded motions; the arms track them with
-    different lags and approach their faces at different angles, so the measured gaps to the
-    face planes (2,) [m] (along the inward normals (2, 3)) over the commanded closing speeds
-    give each arm's time to contact. Once the later arm is within horizon [m] of its face its
-    velocity is scaled up by the ratio of the two times (blended in linearly over the outer
-    half of the horizon, at most fastest). Speeding the late arm rather than slowing the early
-    one keeps both impact speeds near the desired one (eq. 5): the arms reach about 94 % of a
-    commanded speed, and a slowed arm would hit the box that much slower again.
+    The coordinated DS (eq. 4) synchronises the commanded motions, but the arms track them with
+    different lags and a yawed box puts their faces at different angles, so each pad's time to
+    contact T is measured: its gap (2,) [m] to the face plane along the inward normal (2, 3)
+    over its commanded closing speed. The arm behind speeds up and the arm ahead slows down by
+    schedule.gain (T_behind - T_ahead) / (T_behind + T_ahead), within [schedule.slowest,
+    schedule.fastest]. With gain k > 1 the time difference shrinks like T^k and the speed
+    change with it, so both pads strike at the impact speed (eq. 5); a one-sided catch-up
+    (later arm times the ratio of the times) keeps that ratio to the end and strikes fast. The
+    schedule blends in over the outer half of schedule.horizon [m] and out over the last
+    schedule.final_gap [m] of the nearer pad, where the gaps are within the mocap's noise.
     """
     velocity = np.asarray(velocity, dtype=float)
+    gaps = np.asarray(gaps, dtype=float)
     closing = np.einsum('ij,ij->i', velocity, normals)
-    if np.any(closing <= 1e-6) or np.any(np.asarray(gaps) <= 0.0):
+    if np.any(closing <= 1e-6) or np.any(gaps <= 0.0) or np.max(gaps) >= schedule.horizon:
         return velocity
-    times = np.asarray(gaps, dtype=float) / closing
-    later = int(np.argmax(times))
-    earlier = 1 - later
-    if gaps[later] >= horizon or times[earlier] >= times[later]:
-        return velocity
-    weight = min(1.0, 2.0 * (1.0 - gaps[later] / horizon))
-    scale = min(1.0 + weight * (times[later] / times[earlier] - 1.0), fastest)
-    synchronised = velocity.copy()
-    synchronised[later] *= scale
-    return synchronised
+    times = gaps / closing
+    lead = schedule.gain * (times - times[::-1]) / times.sum()
+    weight = min(1.0, 2.0 * (1.0 - float(np.max(gaps)) / schedule.horizon))
+    if schedule.final_gap > 0.0:
+        weight *= min(1.0, max(0.0, float(np.min(gaps)) / schedule.final_gap - 1.0))
+    scale = np.clip(1.0 + weight * lead, schedule.slowest, schedule.fastest)
+    return velocity * scale[:, None]
 
 
 def yield_to_single_contact(commands, contacts, frames):

@@ -52,24 +52,42 @@ class ImpactConfig:
         'max_tilt_deg of the face normal, away from the shoulder until it does not '
         '(core.elbow_reach.elbow_clear_direction).', unit='m', low=0, high=0.5)
     synchronisation_distance: float = setting(
-        0.1, 'Within this distance of its grasp point the arm behind speeds up to arrive with '
-        "the other (core.approach.synchronised_arrival); 0 disables it. Default 0.1: the box's "
-        'yaw otherwise delays one pad by about 0.9 ms per degree. 200 paper_toss_random trials '
-        'in the twin, without -> with: contact-time gap p95 14 -> 10 ms, success 144 -> 175 (182 '
-        'reachable), both impact speeds within 10 % of 0.5 m/s in 180 of 182 grasps; at 0.2-0.25 '
-        'm it made gaps worse (p95 14-18 ms).', unit='m', low=0, high=2.0)
+        0.1, 'Within this gap of its face the arms are timed to touch together '
+        "(core.approach.synchronised_arrival); 0 disables it. The box's yaw otherwise delays "
+        'one pad by about 0.9 ms per degree. 0.15 made the gaps worse (catalogue_random, 100 '
+        'trials: p95 8 ms against 6).', unit='m', low=0, high=2.0)
+    synchronisation_gain: float = setting(
+        3.0, 'Gain k of the arrival synchroniser: the difference of the times to contact '
+        'shrinks like T^k, so k > 1 fades the speed change before contact.', low=0, high=20.0)
     synchronisation_max_speedup: float = setting(
         1.35, 'Largest factor by which the synchroniser speeds up the arm behind. The pad of an '
         'arm whose elbow is near its limit stays a few degrees off its face and its corner '
-        'leads: catalogue_random (seed 11, 300 trials) at 1.2 / 1.35 / 1.5: contact-time gap '
-        'p95 10 / 6 / 8 ms, 11 / 4 / 2 trials over 10 ms, success 252 / 259 / 258, impact '
-        'speed within 10 % for 87.5 / 84.9 / 75.6 % of the pads.', low=1.0, high=3.0)
+        'leads, so the arm behind may need much more than the average.', low=1.0, high=3.0)
+    synchronisation_max_slowdown: float = setting(
+        0.75, 'Smallest factor by which the synchroniser slows the arm ahead.', low=0.1,
+        high=1.0)
+    synchronisation_final_gap: float = setting(
+        0.005, 'The synchroniser fades out between twice this gap and this gap of the nearer '
+        'pad, where a gap is within the mocap noise and the arms could not follow a change in '
+        'time; over 100 catalogue_random trials 0 / 0.005 / 0.01 m gave contact-time gap p95 '
+        '6 / 6.4 / 8 ms and 67 / 99 / 100 % of the pads within 10 % of the impact speed.',
+        unit='m', low=0, high=0.1)
     region: ModulationRegionConfig = ModulationRegionConfig()
 
     def __post_init__(self):
         check_settings(self)
         if not isinstance(self.region, ModulationRegionConfig):
             raise ConfigError(f'region must be a ModulationRegionConfig, got {self.region!r}')
+
+
+class ArrivalSchedule(NamedTuple):
+    """Settings of core.approach.synchronised_arrival: gaps [m], gain, speed factors."""
+
+    horizon: float
+    final_gap: float
+    gain: float
+    slowest: float
+    fastest: float
 
 
 class ImpactGeometry(NamedTuple):

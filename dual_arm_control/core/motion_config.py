@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from dual_arm_control.core.contact import ContactConfig, FtCompensationConfig
 from dual_arm_control.core.cooperative import CoordinationConfig
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.impact import ImpactConfig
+from dual_arm_control.core.impact import ArrivalSchedule, ImpactConfig
 from dual_arm_control.core.manipulation import LiftConfig, PlaceConfig, TossConfig
 from dual_arm_control.core.moving_grab import MovingGrabConfig
 from dual_arm_control.core.moving_target import ConveyorTossConfig
@@ -90,13 +90,18 @@ class MotionGeneratorConfig:
 
     def arrival_synchroniser(self):
         """
-        Return the arrival synchroniser's (pad half extents (2,) [m], largest speed-up).
+        Return the arrival synchroniser's (pad half extents (2,) [m], ArrivalSchedule).
 
         Over a still box the gaps run from the pads' nearest corners (reachability's pad size)
         and the arm behind may speed up by impact.synchronisation_max_speedup; a moving grab
         measures from the pads' centres and keeps moving_grab.synchronisation_max_speedup.
         """
+        impact = self.impact
+        schedule = ArrivalSchedule(
+            impact.synchronisation_distance, impact.synchronisation_final_gap,
+            impact.synchronisation_gain, impact.synchronisation_max_slowdown,
+            impact.synchronisation_max_speedup)
         if self.moving_grab.enabled:
-            return (0.0, 0.0), self.moving_grab.synchronisation_max_speedup
-        return ((self.reachability.pad_half_length, self.reachability.pad_half_width),
-                self.impact.synchronisation_max_speedup)
+            return (0.0, 0.0), schedule._replace(
+                fastest=self.moving_grab.synchronisation_max_speedup)
+        return (self.reachability.pad_half_length, self.reachability.pad_half_width), schedule

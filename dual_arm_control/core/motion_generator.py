@@ -36,7 +36,7 @@ from dual_arm_control.core.phases import (Phase, PhaseInputs, PhaseMachine, Phas
                                           Task)
 from dual_arm_control.core.release import clear_of_the_box
 from dual_arm_control.core.speed_shaping import (
-    boosted_coordinated_velocity, boosted_velocity, reach_speed, saturated_velocity,
+    arm_velocities_near_object, boosted_velocity, reach_speed, saturated_velocity,
     SpeedErrorIntegrator, SpeedFilter)
 from dual_arm_control.core.validation import finite_array
 import numpy as np
@@ -295,13 +295,13 @@ class DualArmMotionGenerator:
         distance = float(np.max(np.linalg.norm(p_tools - grasp_points, axis=1)))
         target_speed = reach_speed(distance, config.impact.impact_speed, config.speed)
         speed = self._reach_speed.update(target_speed, dt)
-        velocity = boosted_coordinated_velocity(field_output.velocity, speed).reshape(2, 3)
+        velocity = arm_velocities_near_object(field_output.velocity, speed, distance,
+                                              config.speed)
         if config.impact.synchronisation_distance > 0.0:
             normals = np.array([frames[arm].normal for arm in ARMS])
-            pad, fastest = config.arrival_synchroniser()
+            pad, schedule = config.arrival_synchroniser()
             gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, *pad)
-            velocity = synchronised_arrival(velocity, gaps, normals,
-                                            config.impact.synchronisation_distance, fastest)
+            velocity = synchronised_arrival(velocity, gaps, normals, schedule)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)
