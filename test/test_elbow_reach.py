@@ -3,7 +3,8 @@
 import math
 
 from dual_arm_control.core.elbow_reach import (clearest_direction, elbow_clear_direction,
-                                               run_in_elbow_margin, wrist_offset)
+                                               reachable_release_rotation, run_in_elbow_margin,
+                                               wrist_offset, wrist_overreach)
 from dual_arm_control.core.geometry import quat_xyzw_to_matrix
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.core.impact import impact_direction
@@ -20,6 +21,8 @@ ARMS = ('left', 'right')
 # d5 of robot_facts) [m].
 FOLDED_WRIST_DISTANCE = {'left': math.sqrt(0.4 ** 2 + 0.4 ** 2 - 0.4 * 0.4),
                          'right': math.sqrt(0.42 ** 2 + 0.4 ** 2 - 0.42 * 0.4)}
+# Stretched straight (A4 = 0), upper arm plus forearm [m].
+STRAIGHT_WRIST_DISTANCE = {'left': 0.4 + 0.4, 'right': 0.42 + 0.4}
 # Base position plus d1 (0.34 m iiwa 7, 0.36 m iiwa 14) [m].
 SHOULDER = {arm: load_cell().arm(arm).base_position + [0.0, 0.0, height]
             for arm, height in (('left', 0.34), ('right', 0.36))}
@@ -67,11 +70,12 @@ def test_elbow_reach_is_the_robot_facts_geometry(models, arm):
     np.testing.assert_allclose(reach.shoulder, SHOULDER[arm], atol=1e-9)
     np.testing.assert_allclose(reach.wrist_in_tool, [0.0, 0.0, -WRIST_TO_TOOL], atol=1e-9)
     assert reach.min_wrist_distance == pytest.approx(FOLDED_WRIST_DISTANCE[arm], abs=1e-6)
+    assert reach.max_wrist_distance == pytest.approx(STRAIGHT_WRIST_DISTANCE[arm], abs=1e-6)
 
 
 @pytest.mark.parametrize('arm', ARMS)
 def test_the_wrist_offset_of_any_posture_is_outside_the_folded_distance(models, arm):
-    """Within the joint limits the shoulder-wrist distance never drops below the folded one."""
+    """Within the joint limits the shoulder-wrist distance stays between folded and straight."""
     model = models[arm]
     reach = model.elbow_reach()
     lower, upper = model.position_limits
@@ -85,6 +89,7 @@ def test_the_wrist_offset_of_any_posture_is_outside_the_folded_distance(models, 
     p_world_tool, R_world_tool = model.tool_pose(q)
     folded = np.linalg.norm(wrist_offset(reach, p_world_tool, R_world_tool))
     assert min(distances) >= reach.min_wrist_distance - 1e-9
+    assert max(distances) <= reach.max_wrist_distance + 1e-9
     assert folded == pytest.approx(reach.min_wrist_distance, abs=1e-9)
 
 
@@ -188,3 +193,65 @@ def test_a_yawed_box_is_met_flush_by_both_pads_with_the_elbows_inside_their_limi
         assert off_flush <= 3.0
         assert elbow_margin >= 1.0
     assert abs(data['t'][contact['left']] - data['t'][contact['right']]) <= 0.004 + 1e-9
+
+
+def yaw_of(rotation):
+    return math.atan2(rotation[1, 0], rotation[0, 0])
+
+
+@pytest.fixture(scope='module')
+def reaches(models):
+    return {arm: models[arm].elbow_reach() for arm in ARMS}
+
+
+# The 0.26 m cube grabbed 85 mm off its faces' centres (the longest shift), tossed from the
+# catalogue scenarios' release point.
+CUBE_260 = np.array([0.26, 0.26, 0.26])
+SHIFTED = np.array([0.085, 0.0, 0.0])
+RELEASE = np.array([0.68, 0.0, 0.45])
+
+
+def test_a_box_held_square_to_the_toss_is_not_turned(reaches):
+    """Centred, a box 3 deg off the heading is within reach; shifted, 2 cm beyond, allowed."""
+    held = yaw_rotation(math.radians(3.0))
+    assert wrist_overreach(reaches, RELEASE, held, CUBE_260) < 0.0
+    assert 0.0 < wrist_overreach(reaches, RELEASE, held, CUBE_260, SHIFTED) < 0.1
+    turned = reachable_release_rotation(reaches, RELEASE, TOSS_VELOCITY, held, CUBE_260,
+                                        SHIFTED, 0.0, overreach=0.1)
+    np.testing.assert_array_equal(turned, held)
+
+
+@pytest.mark.parametrize('yaw_deg', [-23.0, 25.0])
+def test_a_yawed_box_is_turned_just_far_enough_for_the_far_arm_to_reach(reaches, yaw_deg):
+    """
+    Yawed 23 deg toward the right arm's side, the left wrist lies 16 cm beyond its reach.
+
+    The box is turned toward the heading (yaw 0) to the first whole degree at which no wrist is
+    more than the allowed overreach beyond its reach: one degree less would not do.
+    """
+    held = yaw_rotation(math.radians(yaw_deg))
+    allowed = 0.1
+    before = wrist_overreach(reaches, RELEASE, held, CUBE_260, SHIFTED)
+    turned = reachable_release_rotation(reaches, RELEASE, TOSS_VELOCITY, held, CUBE_260,
+                                        SHIFTED, 0.0, overreach=allowed)
+    after = wrist_overreach(reaches, RELEASE, turned, CUBE_260, SHIFTED)
+    turn = math.degrees(yaw_of(turned)) - yaw_deg
+    print(f'yaw {yaw_deg} deg: overreach {before:.3f} m; turned {turn:+.1f} deg: {after:.3f} m')
+    assert before > allowed
+    assert after <= allowed
+    assert 0.0 < abs(turn) < abs(yaw_deg) and np.sign(turn) == -np.sign(yaw_deg)
+    assert turn == pytest.approx(round(turn), abs=1e-9)
+    one_less = yaw_rotation(math.radians(yaw_deg + turn - np.sign(turn)))
+    assert wrist_overreach(reaches, RELEASE, one_less, CUBE_260, SHIFTED) > allowed
+    np.testing.assert_allclose(turned[:, 2], [0.0, 0.0, 1.0], atol=1e-12)
+
+
+def test_an_unreachable_release_keeps_the_yaw_of_the_least_overreach(reaches):
+    """No yaw satisfies a negative allowance of 1 m: the answer is the best one on the way."""
+    held = yaw_rotation(math.radians(-25.0))
+    turned = reachable_release_rotation(reaches, RELEASE, TOSS_VELOCITY, held, CUBE_260,
+                                        SHIFTED, 0.0, overreach=-1.0)
+    candidates = [wrist_overreach(reaches, RELEASE, yaw_rotation(math.radians(yaw)), CUBE_260,
+                                  SHIFTED) for yaw in np.arange(-25.0, 0.5, 1.0)]
+    assert wrist_overreach(reaches, RELEASE, turned, CUBE_260, SHIFTED) == pytest.approx(
+        min(candidates), abs=1e-12)

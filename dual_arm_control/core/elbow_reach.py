@@ -11,12 +11,18 @@ to the shoulders and the paper's tilt of e1 toward the object's motion (forward,
 run-in start with the wrist closer to the shoulder than the elbow can fold: the arm then runs
 along its elbow limit, the passive controller trades orientation for position, and the pads
 meet their faces several degrees off flush, one corner first.
+
+The elbow's other end: stretched straight (A4 = 0) the wrist is max_wrist_distance from the
+shoulder and no farther, and an arm driven toward a wrist beyond it lags its pad while the other
+arm does not. reachable_release_rotation turns the carried box's yaw until, at the release
+point, no wrist lies more than an allowed overreach beyond it.
 """
 
 import math
 from typing import NamedTuple
 
 from dual_arm_control.core.geometry import cross3, rotation_exp, unit, vector_norm
+from dual_arm_control.core.grasp import grasp_frame
 import numpy as np
 
 # Fractions of the turn from the preferred direction toward the clearest one tried, in order.
@@ -32,6 +38,8 @@ class ElbowReach(NamedTuple):
     """(3,) the A6 axis origin in the tool frame."""
     min_wrist_distance: float
     """Shoulder-wrist distance with the elbow folded to its joint limit."""
+    max_wrist_distance: float
+    """Shoulder-wrist distance with the elbow straight (A4 = 0)."""
 
 
 def wrist_offset(reach, p_world_tool, R_world_tool):
@@ -107,3 +115,52 @@ def elbow_clear_direction(direction, normal, max_tilt, reach, p_world_grasp, R_w
         if _run_in_margin(reach, wrist, candidate, run_in) >= required - 1e-9:
             return candidate
     return clearest
+
+
+def wrist_overreach(reaches, p_world_object, R_world_object, size, offset=(0.0, 0.0, 0.0),
+                    roll=0.0):
+    """
+    Return the largest wrist overreach [m] of the arms holding a box at a pose.
+
+    Over the arms ({arm: ElbowReach}), the shoulder-wrist distance with the pad on its grasp
+    frame (core.grasp.grasp_frame: box size (3,) [m], grasp offset, pad roll) less the
+    straight-arm distance: positive for a pose some arm cannot reach.
+    """
+    excess = -math.inf
+    for arm, reach in reaches.items():
+        frame = grasp_frame(arm, p_world_object, R_world_object, size, offset, roll)
+        wrist = wrist_offset(reach, frame.p_world_grasp, frame.R_world_grasp)
+        excess = max(excess, vector_norm(wrist) - reach.max_wrist_distance)
+    return excess
+
+
+def reachable_release_rotation(reaches, p_world_release, v_world_release, R_world_held, size,
+                               offset, roll, overreach, step=math.radians(1.0)):
+    """
+    Return the orientation (3, 3) the box keeps to its release: R_world_held, turned if need be.
+
+    A box grabbed yawed puts one pad ahead of the other along the toss; at the release point
+    p_world_release (3,) [m] the wrist of the arm ahead may lie beyond its straight-arm reach.
+    That arm then stretches to its elbow singularity and falls behind while the other carries
+    on, and the box turns in the grasp. The answer turns R_world_held about world z toward the
+    toss heading (the horizontal direction of v_world_release (3,)) in steps of step [rad],
+    stopping at the first yaw at which no wrist lies more than overreach [m] beyond its reach
+    (wrist_overreach); if none does, the yaw of the least overreach. Turning the box costs
+    speed and grip too, so a small overreach, which the arm rides out stretched for an
+    instant, is left alone.
+    """
+    R_world_held = np.asarray(R_world_held, dtype=float)
+    yaw = math.atan2(R_world_held[1, 0], R_world_held[0, 0])
+    heading = math.atan2(v_world_release[1], v_world_release[0])
+    turn = math.remainder(heading - yaw, 2.0 * math.pi)
+    steps = int(math.ceil(abs(turn) / step))
+    best, least = R_world_held, math.inf
+    for index in range(steps + 1):
+        candidate = rotation_exp(np.array([0.0, 0.0, turn * index / max(steps, 1)])) \
+            @ R_world_held
+        excess = wrist_overreach(reaches, p_world_release, candidate, size, offset, roll)
+        if excess <= overreach:
+            return candidate
+        if excess < least - 1e-9:
+            best, least = candidate, excess
+    return best

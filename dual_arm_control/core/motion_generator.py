@@ -18,6 +18,7 @@ from dual_arm_control.core.approach import (first_touch_gaps, impact_directions,
                                             TOSS_TASKS, yield_to_single_contact)
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.contact import ContactDetector, FtBiasEstimator
+from dual_arm_control.core.elbow_reach import reachable_release_rotation
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.core.held_object import HeldObjectEstimate
 from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry
@@ -231,12 +232,9 @@ class DualArmMotionGenerator:
         slow down near their targets) are capped by it.
         """
         config = self._config
-        if config.task in TOSS_TASKS:
-            task_speed = config.toss.toss_speed
-        elif config.task is Task.PICK_AND_PLACE:
-            task_speed = config.place.max_speed
-        else:
-            task_speed = config.lift.max_speed
+        task_speed = (config.toss.toss_speed if config.task in TOSS_TASKS
+                      else config.place.max_speed if config.task is Task.PICK_AND_PLACE
+                      else config.lift.max_speed)
         carried = phase in (Phase.CONTACT, Phase.MANIPULATE)
         belt = np.zeros(3)
         if carried and config.moving_grab.enabled:
@@ -278,7 +276,11 @@ class DualArmMotionGenerator:
             target = self._release_rotation
         elif mode == 'hold':
             if self._grasped_rotation is None:
-                self._grasped_rotation = R_object
+                self._grasped_rotation = R_object if self._elbow_reaches is None else \
+                    reachable_release_rotation(
+                        self._elbow_reaches, self._toss_geometry.release_position,
+                        self._release_velocity, R_object, config.object_size,
+                        self._grasp_offset, self._grasp_roll, config.toss.release_overreach)
             target = self._grasped_rotation
         else:
             target = level_rotation(R_object)

@@ -173,19 +173,20 @@ class ArmModel:
         """
         Return the ElbowReach of the arm.
 
-        Its shoulder, the wrist in the tool frame, and the shoulder-wrist distance with the
-        elbow (A4) folded to its joint limit.
+        Its shoulder, the wrist in the tool frame, and the shoulder-wrist distances with the
+        elbow (A4) folded to its joint limit and stretched straight.
         """
         q = np.zeros(JOINTS_PER_ARM)
         p_world_tool, R_world_tool = self.tool_pose(q)
         shoulder = self.data.oMi[SHOULDER_JOINT].translation.copy()
         wrist_in_tool = R_world_tool.T @ (self.data.oMi[WRIST_JOINT].translation - p_world_tool)
+        straight = float(np.linalg.norm(self.data.oMi[WRIST_JOINT].translation - shoulder))
         lower, upper = self.position_limits
         q[ELBOW_JOINT - 1] = min(abs(lower[ELBOW_JOINT - 1]), abs(upper[ELBOW_JOINT - 1]))
         pin.forwardKinematics(self.model, self.data, q)
         folded = float(np.linalg.norm(self.data.oMi[WRIST_JOINT].translation
                                       - self.data.oMi[SHOULDER_JOINT].translation))
-        return ElbowReach(shoulder, wrist_in_tool, folded)
+        return ElbowReach(shoulder, wrist_in_tool, folded, straight)
 
     def tool_twist(self, q, dq):
         """Return (v_world (3,) [m/s], w_world (3,) [rad/s]) of the tool point."""
