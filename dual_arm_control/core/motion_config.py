@@ -17,6 +17,7 @@ from dual_arm_control.core.moving_target import ConveyorTossConfig
 from dual_arm_control.core.orientation import OrientationDsConfig
 from dual_arm_control.core.phases import PhaseConfig, Task, task_from_name, TASK_NAMES
 from dual_arm_control.core.reachability import ReachabilityConfig
+from dual_arm_control.core.resting_object import RestingObjectConfig
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.core.toss_planning import ReleasePlanningConfig
@@ -30,8 +31,8 @@ class MotionGeneratorConfig:
 
     standby_positions (2, 3) [m] and standby_rotations (2, 3, 3) are the tool standby poses in the
     world, rows left, right (set by the cell, not tunable); coordination, impact, toss, lift,
-    place, speed, orientation, phases, contact, ft, reachability, release_planning, conveyor
-    and moving_grab are the component configs (see their modules).
+    place, speed, orientation, phases, contact, ft, reachability, release_planning, conveyor,
+    moving_grab and resting_object are the component configs (see their modules).
     """
 
     task: object = setting(
@@ -76,6 +77,7 @@ class MotionGeneratorConfig:
     release_planning: ReleasePlanningConfig = field(default_factory=ReleasePlanningConfig)
     conveyor: ConveyorTossConfig = field(default_factory=ConveyorTossConfig)
     moving_grab: MovingGrabConfig = field(default_factory=MovingGrabConfig)
+    resting_object: RestingObjectConfig = field(default_factory=RestingObjectConfig)
 
     def __post_init__(self):
         object.__setattr__(self, 'task', task_from_name(self.task))

@@ -36,6 +36,7 @@ from dual_arm_control.core.orientation import (
 from dual_arm_control.core.phases import (Phase, PhaseInputs, PhaseMachine, PhaseMachineOutput,
                                           Task)
 from dual_arm_control.core.release import clear_of_the_box
+from dual_arm_control.core.resting_object import RestingObjectFilter
 from dual_arm_control.core.speed_shaping import (
     arm_velocities_near_object, boosted_velocity, reach_speed, saturated_velocity,
     SpeedErrorIntegrator, SpeedFilter)
@@ -54,6 +55,7 @@ class DualArmMotionGenerator:
         self._object_speed = SpeedFilter(config.toss_speed_time_constant)
         self._toss_feedback = _toss_feedback(config.toss)
         self._held_object = HeldObjectEstimate()
+        self._resting_object = RestingObjectFilter()
         self._release_object_velocity = self._toss_velocity = np.zeros(3)
         self._grasp_offset = np.zeros(3)
         self._grasp_roll = 0.0
@@ -89,11 +91,7 @@ class DualArmMotionGenerator:
         self._grasp_roll = float(finite_array('grasp_roll', roll, ()))
 
     def set_elbow_reaches(self, elbow_reaches):
-        """
-        Keep every run-in within the arms' elbow reach ({arm: ElbowReach}; None: do not).
-
-        Not in a moving grab: its run-in follows the belt (core.moving_grab), tuned without it.
-        """
+        """Keep run-ins (not a moving grab's) and releases in reach ({arm: ElbowReach})."""
         self._elbow_reaches = elbow_reaches
 
     def halt(self):
@@ -137,6 +135,10 @@ class DualArmMotionGenerator:
                 config.held_object_time_constant, planned_offset=-R_object @ self._grasp_offset)
         else:
             self._held_object.reset()
+        resting = (self._phase_machine.phase in (Phase.STANDBY, Phase.REACH)
+                   and self._halt is None and not config.moving_grab.enabled)
+        p_object, R_object = self._resting_object.update(resting, p_object, R_object, dt,
+                                                         config.resting_object)
         frames = {arm: grasp_frame(arm, p_object, R_object, config.object_size,
                                    self._grasp_offset, self._grasp_roll) for arm in ARMS}
         pad_forces, contacts = {}, {}
@@ -383,10 +385,9 @@ class DualArmMotionGenerator:
         rotations = self._standby_rotations if rotations is None else rotations
         commands = {}
         for index, arm in enumerate(ARMS):
-            target = targets[index]
+            target, R_target = targets[index], rotations[index]
             velocity = saturated_velocity(-config.standby_gain * (p_tools[index] - target),
                                           config.max_linear_speed)
-            R_target = rotations[index]
             commands[arm] = ArmCommand(
                 velocity,
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
