@@ -5,7 +5,7 @@ import math
 from dual_arm_control.core.elbow_reach import (clearest_direction, elbow_clear_direction,
                                                reachable_release_rotation, run_in_elbow_margin,
                                                wrist_offset, wrist_overreach)
-from dual_arm_control.core.geometry import quat_xyzw_to_matrix
+from dual_arm_control.core.geometry import matrix_to_rpy, quat_xyzw_to_matrix
 from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.core.impact import impact_direction
 from dual_arm_control.description.cell import arm_model, load_cell
@@ -195,10 +195,6 @@ def test_a_yawed_box_is_met_flush_by_both_pads_with_the_elbows_inside_their_limi
     assert abs(data['t'][contact['left']] - data['t'][contact['right']]) <= 0.004 + 1e-9
 
 
-def yaw_of(rotation):
-    return math.atan2(rotation[1, 0], rotation[0, 0])
-
-
 @pytest.fixture(scope='module')
 def reaches(models):
     return {arm: models[arm].elbow_reach() for arm in ARMS}
@@ -235,7 +231,7 @@ def test_a_yawed_box_is_turned_just_far_enough_for_the_far_arm_to_reach(reaches,
     turned = reachable_release_rotation(reaches, RELEASE, TOSS_VELOCITY, held, CUBE_260,
                                         SHIFTED, 0.0, overreach=allowed)
     after = wrist_overreach(reaches, RELEASE, turned, CUBE_260, SHIFTED)
-    turn = math.degrees(yaw_of(turned)) - yaw_deg
+    turn = math.degrees(matrix_to_rpy(turned)[2]) - yaw_deg
     print(f'yaw {yaw_deg} deg: overreach {before:.3f} m; turned {turn:+.1f} deg: {after:.3f} m')
     assert before > allowed
     assert after <= allowed

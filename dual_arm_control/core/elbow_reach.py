@@ -21,7 +21,8 @@ point, no wrist lies more than an allowed overreach beyond it.
 import math
 from typing import NamedTuple
 
-from dual_arm_control.core.geometry import cross3, rotation_exp, unit, vector_norm
+from dual_arm_control.core.geometry import (cross3, matrix_to_rpy, rotation_exp, unit,
+                                            vector_norm)
 from dual_arm_control.core.grasp import grasp_frame
 import numpy as np
 
@@ -150,7 +151,7 @@ def reachable_release_rotation(reaches, p_world_release, v_world_release, R_worl
     instant, is left alone.
     """
     R_world_held = np.asarray(R_world_held, dtype=float)
-    yaw = math.atan2(R_world_held[1, 0], R_world_held[0, 0])
+    yaw = matrix_to_rpy(R_world_held)[2]
     heading = math.atan2(v_world_release[1], v_world_release[0])
     turn = math.remainder(heading - yaw, 2.0 * math.pi)
     steps = int(math.ceil(abs(turn) / step))
