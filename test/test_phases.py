@@ -372,3 +372,22 @@ def test_a_box_the_arms_bring_no_closer_than_2_cm_is_put_down_where_it_stalls():
     slow = 0.6 + 0.1 * np.log(0.3 / 0.002)
     assert slow + 0.3 - 0.005 <= release_time <= slow + 0.3 + 0.005 + 1e-9
     assert 'stalled 0.020 m' in release.reason
+
+
+@pytest.mark.parametrize('offset, released', [
+    ((-0.04, 0.0, 0.004), True), ((0.0, 0.0, 0.04), False), ((-0.07, 0.0, 0.004), False)])
+def test_a_box_resting_on_the_table_short_of_the_place_is_put_down(offset, released):
+    """
+    A box grasped forward of its centre can rest on the table 4 cm short of the place.
+
+    It is let go place_stall_time after it stalls: within 5 cm horizontally and 3 cm in
+    height. A box held 4 cm above the place, or resting 7 cm short, is not put down there.
+    """
+    machine = PhaseMachine(PhaseConfig(), Task.PICK_AND_PLACE)
+    stall = P_PLACE + np.array(offset)
+    scenario = Scenario(object_state=lambda t: place_object_state(t, stall), contact_end=3.0)
+    record = run(machine, scenario, 0.005, 2.0)
+    releases = [tr for _, tr in transitions(record) if tr.target is Phase.RELEASE]
+    assert bool(releases) is released
+    if released:
+        assert 'stalled 0.040 m' in releases[0].reason

@@ -9,9 +9,8 @@ update(inputs, dt) advances the time in phase by dt seconds and takes at most on
     MANIPULATE --release condition--> RELEASE --pads free or open-hands time--> RETRACT
     RETRACT --both tools near standby--> STANDBY
 
-go_home from REACH jumps to RETRACT, from CONTACT/MANIPULATE to RELEASE (open the hands first);
-reset returns to STANDBY at once. Commands act on their rising edge; every latch is cleared
-at an episode start.
+go_home from REACH jumps to RETRACT, from CONTACT/MANIPULATE to RELEASE (open the hands
+first); reset returns to STANDBY at once. Commands act on their rising edge.
 """
 
 from dataclasses import dataclass, field
@@ -90,18 +89,19 @@ class PhaseConfig:
         0.1, 'Place release when ||v_o|| < this (and within place_tolerance).',
         unit='m/s', low=0, low_open=True)
     place_stall_distance: float = setting(
-        0.03, 'A box this near the place, slower than place_stall_speed for place_stall_time, '
-        'is let go where it is (core.release.PlaceRelease).', unit='m', low=0, high=1.0)
+        0.05, 'A box this near the place horizontally and within place_stall_height of its '
+        'height, slower than place_stall_speed for place_stall_time, is let go where it is '
+        '(core.release.PlaceRelease).', unit='m', low=0, high=1.0)
+    place_stall_height: float = setting(0.03, 'See place_stall_distance.', unit='m', low=0,
+                                        high=1.0)
     place_stall_speed: float = setting(0.02, 'See place_stall_distance.', unit='m/s', low=0,
                                        high=1.0, low_open=True)
     place_stall_time: float = setting(0.3, 'See place_stall_distance.', unit='s', low=0,
                                       high=10.0, low_open=True)
-    lift_tolerance: float = setting(
-        0.03, "'lift_reached' fires within this of the lift pose.", unit='m', low=0,
-        low_open=True)
-    grasp_loss_timeout: float = setting(
-        0.1, 'A pad out of contact this long in MANIPULATE releases.', unit='s', low=0,
-        low_open=True)
+    lift_tolerance: float = setting(0.03, "'lift_reached' fires within this of the lift "
+                                    'pose.', unit='m', low=0, low_open=True)
+    grasp_loss_timeout: float = setting(0.1, 'A pad out of contact this long in MANIPULATE '
+                                        'releases.', unit='s', low=0, low_open=True)
     open_hands_time: float = setting(
         0.5, 'RELEASE ends after this even if a pad still reads contact.',
         unit='s', low=0, low_open=True)
