@@ -356,6 +356,8 @@ def test_failure_modes_count_each_trials_first_reason():
     reasons = [failure_reason('pick_and_toss', metrics) for metrics in (refused, late, late,
                                                                         bumped)]
     assert reasons[0].startswith('no reach: the arms stayed at standby')
+    assert failure_reason('pick_and_place', dict(refused, landed_in_container=None)).endswith(
+        '(grasp refused as out of reach)')
     assert 'front_table - left/pad' in reasons[3]
     far_targets = ((1.1, 1.4), (1.2, 1.5))
     reasons += [f'UnreachableTargetError: landing target [{x}, -0.2, 0.25] m cannot be reached '

@@ -94,7 +94,7 @@ def failure_reason(task, metrics):
     if gap is None and all(drift is not None and drift < STANDBY_DRIFT for drift in drifts):
         reasons.append('no reach: the arms stayed at standby (' + (
             'the container never came in range, or the grasp was refused'
-            if 'landed_in_container' in metrics else 'grasp refused as out of reach') + ')')
+            if task in TOSS_TASKS else 'grasp refused as out of reach') + ')')
     elif gap is None:
         reasons.append('no contact of both pads')
     elif gap > CONTACT_GAP_LIMIT:
