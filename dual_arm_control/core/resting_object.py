@@ -14,7 +14,7 @@ box on a belt is not at rest: the moving grab reads the tracker alone.
 
 from dataclasses import dataclass
 
-from dual_arm_control.core.geometry import rotation_exp, rotation_log, vector_norm
+from dual_arm_control.core.geometry import slerp_rotation, vector_norm
 from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
@@ -41,8 +41,7 @@ class RestingObjectFilter:
     """First-order low-pass of a resting box's position and orientation."""
 
     def __init__(self):
-        self._position = None
-        self._rotation = None
+        self.reset()
 
     def reset(self):
         """Forget the low-passed pose: the next resting tick starts from the tracked one."""
@@ -67,6 +66,5 @@ class RestingObjectFilter:
         else:
             weight = dt / (config.time_constant + dt)
             self._position = self._position + weight * (p_world_object - self._position)
-            self._rotation = rotation_exp(
-                weight * rotation_log(R_world_object @ self._rotation.T)) @ self._rotation
+            self._rotation = slerp_rotation(self._rotation, R_world_object, weight)
         return self._position.copy(), self._rotation.copy()
