@@ -131,12 +131,12 @@ def test_toss_tasks_full_sequence(task, dt):
 @pytest.mark.parametrize('dt', RATES_DT)
 def test_pick_and_place_full_sequence(dt):
     """
-    Release needs distance <= 0.03 m AND speed < 0.1 m/s.
+    Release needs distance <= place_tolerance (0.012 m) AND speed < place_speed (0.1 m/s here).
 
     distance = 0.3 exp(-(t-0.6)/0.1), speed = distance / 0.1: the distance gate alone would
-    pass at 0.830 s (speed 0.3 m/s), both gates at 0.6 + 0.1 ln 30 = 0.940 s.
+    pass at 0.6 + 0.1 ln 25 = 0.922 s (speed 0.12 m/s), both gates at 0.6 + 0.1 ln 30 = 0.940 s.
     """
-    machine = PhaseMachine(PhaseConfig(), Task.PICK_AND_PLACE)
+    machine = PhaseMachine(PhaseConfig(place_speed=0.1), Task.PICK_AND_PLACE)
     record = run(machine, Scenario(object_state=place_object_state, contact_end=1.0), dt, 1.5)
     release_time = 0.6 + 0.1 * np.log(30.0)
     assert_sequence(record, [(Phase.REACH, 0.10), (Phase.CONTACT, 0.52),

@@ -9,8 +9,7 @@ update(inputs, dt) advances the time in phase by dt seconds and takes at most on
     MANIPULATE --release condition--> RELEASE --pads free or open-hands time--> RETRACT
     RETRACT --both tools near standby--> STANDBY
 
-go_home from REACH jumps to RETRACT, from CONTACT/MANIPULATE to RELEASE (open the hands
-first); reset returns to STANDBY at once. Commands act on their rising edge.
+go_home: REACH to RETRACT, CONTACT/MANIPULATE to RELEASE; reset: to STANDBY at once (rising edges).
 """
 
 from dataclasses import dataclass, field
@@ -86,7 +85,8 @@ class PhaseConfig:
         'place_speed (0.012 m: the place target lies a few mm below the resting pose, so this is '
         'on the table).', unit='m', low=0, low_open=True)
     place_speed: float = setting(
-        0.1, 'Place release when ||v_o|| < this (and within place_tolerance).',
+        0.05, 'Place release when ||v_o|| < this (and within place_tolerance): half the 0.1 m/s '
+        'a set-down may have (at 0.1 the speeds at release piled up at 0.097-0.100 m/s).',
         unit='m/s', low=0, low_open=True)
     place_stall_distance: float = setting(
         0.05, 'A box this near the place horizontally and within place_stall_height of its '
