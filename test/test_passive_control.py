@@ -169,6 +169,37 @@ def test_contact_wrench_is_pushed_with_its_own_sign(arm):
     np.testing.assert_allclose(command.torque, expected, atol=1e-9)
 
 
+def test_elbow_lift_pushes_the_elbow_up_from_the_first_contact_wrench_on(arm):
+    """
+    No lift in the reach; once touched, a null-space torque that does positive work lifting it.
+
+    The lift torque is N J_e,z^T F with N the damped projector, symmetric positive
+    semi-definite, so J_e,z (its effect on the elbow's upward velocity) is >= 0.
+    """
+    _, model, q_home = arm
+    config = PassiveControllerConfig(elbow_lift_force=20.0)
+    lifting = PassiveController(model, q_home, config)
+    plain = PassiveController(model, q_home, PassiveControllerConfig(elbow_lift_force=0.0))
+    R_world_tool = model.tool_pose(q_home)[1]
+    contact_wrench = np.array([3.0, -2.0, 30.0, 0.2, -0.1, 0.05])
+    elbow_up = model.elbow_jacobian(q_home)[2]
+
+    def lift_torque(wrench):
+        commands = [controller.torque_command(q_home, np.zeros(7), np.zeros(3), np.zeros(3),
+                                              R_world_tool, wrench)
+                    for controller in (lifting, plain)]
+        assert not any(command.saturated for command in commands)
+        return commands[0].torque - commands[1].torque
+
+    np.testing.assert_allclose(lift_torque(None), 0.0, atol=1e-12)
+    lift = lift_torque(contact_wrench)
+    assert elbow_up @ lift > 0.05 * config.elbow_lift_force * (elbow_up @ elbow_up)
+    np.testing.assert_allclose(lift_torque(None), lift, atol=1e-12)
+    lifting.start_episode()
+    plain.start_episode()
+    np.testing.assert_allclose(lift_torque(None), 0.0, atol=1e-12)
+
+
 def test_null_space_torque_does_no_work_on_tool_motion(arm):
     """
     The projected torque leaves the tool alone: J tau is what leaks through the damped projector.
