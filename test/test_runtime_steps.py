@@ -14,7 +14,7 @@ from dual_arm_control.runtime.controller_step import ControllerStep
 from dual_arm_control.runtime.fri import command_refusal, FriCycle
 from dual_arm_control.runtime.inputs import ArrivalBarrier, MAX_PENDING_STAMPS
 from dual_arm_control.runtime.signals import (arm_command_sample, joint_state_sample,
-                                              JointStateSample)
+                                              JointStateSample, wrench_sample)
 from dual_arm_control.runtime.timing import seconds_to_ns
 from dual_arm_control.scenario import load_scenario
 import numpy as np
@@ -191,6 +191,34 @@ def test_controller_holds_without_a_fresh_command_and_repeats_a_repeated_cycle(c
     np.testing.assert_allclose(stale.effort, controller.hold(q, dq), atol=0.0)
     assert controller.counters['holds_stale_command'] == 1
     assert all(np.isfinite(sample.effort).all() for sample in (first, live, stale))
+
+
+def test_controller_returns_to_the_free_gains_after_a_stretch_without_contact(controller):
+    """
+    The contact gains end after free_gains_after without a contact wrench, not before.
+
+    They hold across a parameter change; then the next reach has the free gains though the
+    clock never went back (a real robot's).
+    """
+    q, dq = CELL.arm('left').q_home, np.zeros(7)
+    free_after = controller.controller.config.free_gains_after
+
+    def cycle_at(stamp_ns, force):
+        controller.command(arm_command_sample(stamp_ns, np.zeros(3), [0.0, 0.0, 0.0, 1.0],
+                                              np.zeros(3), np.zeros(3)))
+        controller.wrench(wrench_sample(stamp_ns, force, np.zeros(3)))
+        controller.cycle(joint_state(stamp_ns, q, dq))
+        return controller.controller.touched
+
+    assert not cycle_at(2 * MS, np.zeros(3))
+    assert cycle_at(4 * MS, [0.0, 20.0, 0.0])
+    last_contact_ns = 4 * MS
+    controller.reconfigure(PassiveControllerConfig(orientation_stiffness=12.0))
+    stamps = np.arange(6 * MS, last_contact_ns + seconds_to_ns(free_after) + 4 * MS, 2 * MS)
+    touched = [cycle_at(int(stamp), np.zeros(3)) for stamp in stamps]
+    assert controller.controller.config.orientation_stiffness == 12.0
+    expected = [stamp - last_contact_ns < seconds_to_ns(free_after) for stamp in stamps]
+    assert touched == expected and not touched[-1]
 
 
 def test_controller_waits_for_tick_inputs_only_on_new_ticks(controller):

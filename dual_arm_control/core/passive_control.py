@@ -82,6 +82,13 @@ class PassiveControllerConfig:
         '(catalogue_random). Not after the grasp: stiff while the hands open, it cost the toss '
         '3 % of its release speed.',
         unit='N m/rad', low=0, high=1e4)
+    free_gains_after: float = setting(
+        2.0, 'Once touched, the contact gains stay on until no contact wrench has come for this '
+        'long; then the free gains return (and the elbow lift goes off) for the next reach, as '
+        "start_episode does when the clock restarts, which a real robot's clock never does. "
+        'Longer than the retract to standby (1.1-1.3 s in the twin): at 0.5 s the stiffer '
+        'orientation slowed it, cycle time p95 +0.2 s (paper_toss_random).',
+        unit='s', low=0, high=100.0, low_open=True)
     null_space_stiffness: tuple = setting(
         (10.0,) * JOINTS, 'K_n, posture stiffness per joint.',
         unit='N m/rad', low=0, high=1e4, size=JOINTS)

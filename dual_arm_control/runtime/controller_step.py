@@ -5,7 +5,9 @@ cycle() answers one joint state with the torque for that cycle, computed from th
 DS command and contact wrench. Stale-input policy: a DS command more than command_timeout away
 from the cycle, or none yet, gives the hold torque g(q) - D_hold dq (counted); a contact wrench
 that old is dropped (counted). The same cycle stamp again is answered with the same torque; an
-earlier stamp (simulation reset) restarts the tick schedule. In lockstep, a node answers a DS
+earlier stamp (simulation reset) restarts the tick schedule and the controller's episode, as does
+a stretch of free_gains_after without a contact wrench once touched (the real clock never goes
+back). In lockstep, a node answers a DS
 tick cycle only once the command and wrench of that tick arrived (needs_tick_inputs).
 
 With a gravity-compensated torque interface (KUKA FRI torque mode: the robot adds its own
@@ -48,6 +50,7 @@ class ControllerStep:
         self._wrench = None
         self._last_cycle_ns = None
         self._last_answer = None
+        self._last_contact_ns = None
         self.refusals = RefusalCounter(on_refusal)
         self.counters = dict.fromkeys(COUNTERS, 0)
 
@@ -91,14 +94,17 @@ class ControllerStep:
             self._schedule.reset()
             self._controller.set_null_space_posture(self._q_null)
             self._controller.start_episode()
+            self._last_contact_ns = None
             self.counters['schedule_restarts'] += 1
         self._last_cycle_ns = stamp_ns
         self.counters['cycles'] += 1
         if self._schedule.due(stamp_ns):
             self._schedule.take(stamp_ns)
         if self._pending_config is not None:
+            touched = self._controller.touched
             self._controller = PassiveController(self._model, self._q_null,
                                                  self._pending_config)
+            self._controller.touched = touched
             self._pending_config = None
         torque = self._torque(stamp_ns, joint_state.position, joint_state.velocity)
         if self._gravity_compensated:
@@ -121,6 +127,7 @@ class ControllerStep:
             self.counters['stale_contact_wrench'] += 1
         else:
             contact_wrench = self._wrench.wrench
+        self._end_episode_without_contact(stamp_ns, contact_wrench)
         if self._command_rotation is None:
             self._command_rotation = command.R_world_desired
         self._controller.track_posture(command.p_world_attractor, self._command_rotation)
@@ -129,6 +136,15 @@ class ControllerStep:
         self.counters['holds_by_controller'] += int(result.held)
         self.counters['saturated'] += int(result.saturated)
         return result.torque
+
+    def _end_episode_without_contact(self, stamp_ns, contact_wrench):
+        """Start a new controller episode once no contact wrench came for free_gains_after."""
+        if contact_wrench is not None and contact_wrench.any():
+            self._last_contact_ns = stamp_ns
+        elif (self._last_contact_ns is not None and stamp_ns - self._last_contact_ns
+              >= seconds_to_ns(self._controller.config.free_gains_after)):
+            self._controller.start_episode()
+            self._last_contact_ns = None
 
     def hold(self, q, dq):
         """Return the safety hold g(q) - D_hold dq within the torque limits [N m]."""
