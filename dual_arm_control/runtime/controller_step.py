@@ -7,8 +7,8 @@ from the cycle, or none yet, gives the hold torque g(q) - D_hold dq (counted); a
 that old is dropped (counted). The same cycle stamp again is answered with the same torque; an
 earlier stamp (simulation reset) restarts the tick schedule and the controller's episode, as does
 a stretch of free_gains_after without a contact wrench once touched (the real clock never goes
-back). In lockstep, a node answers a DS
-tick cycle only once the command and wrench of that tick arrived (needs_tick_inputs).
+back). In lockstep, a node answers a DS tick cycle only once the command and wrench of that
+tick arrived (needs_tick_inputs).
 
 With a gravity-compensated torque interface (KUKA FRI torque mode: the robot adds its own
 gravity compensation) the command is the joint torque minus the model's g(q), so gravity is not
