@@ -278,3 +278,27 @@ def test_place_target_is_raised_far_away_and_the_place_above_it():
 def test_configs_reject_bad_values_naming_the_field(config_type, field, value):
     with pytest.raises(ConfigError, match=field):
         config_type(**{field: value})
+
+
+def test_a_picked_box_clears_its_support_and_goes_down_no_faster_than_the_cap():
+    """Picked 7 cm above the place, the box rises toward lift_height above it, then descends."""
+    config = PlaceConfig()
+    place = np.array(config.position)
+    pick = place + [-0.35, 0.05, 0.07]
+    x_object, path, velocities = pick.copy(), [], []
+    for _ in range(6000):
+        velocity = place_velocity(x_object, config, COORDINATION, pick_height=pick[2])
+        path.append(x_object)
+        velocities.append(velocity)
+        x_object = x_object + 0.001 * velocity
+    path, velocities = np.array(path), np.array(velocities)
+    horizontal = np.hypot(path[:, 0] - place[0], path[:, 1] - place[1])
+    far = horizontal > config.descent_start_distance
+    assert np.all(path[far, 2] >= pick[2] - 1e-9)
+    # The rise is exponential at the DS's rate while the box travels at max_speed.
+    assert pick[2] + 0.5 * config.lift_height < path[:, 2].max() <= pick[2] + config.lift_height
+    assert velocities[:, 2].min() >= -config.descent_speed - 1e-12
+    assert velocities[:, 2].min() == pytest.approx(-config.descent_speed)
+    assert np.linalg.norm(x_object - place) < 1e-3
+    # Without the pick height the box heads down toward the approach height at once.
+    assert place_velocity(pick, config, COORDINATION)[2] < 0.0

@@ -136,7 +136,8 @@ def test_pick_and_place_full_sequence(dt):
     distance = 0.3 exp(-(t-0.6)/0.1), speed = distance / 0.1: the distance gate alone would
     pass at 0.6 + 0.1 ln 25 = 0.922 s (speed 0.12 m/s), both gates at 0.6 + 0.1 ln 30 = 0.940 s.
     """
-    machine = PhaseMachine(PhaseConfig(place_speed=0.1), Task.PICK_AND_PLACE)
+    machine = PhaseMachine(PhaseConfig(place_speed=0.1, place_tolerance=0.012),
+                           Task.PICK_AND_PLACE)
     record = run(machine, Scenario(object_state=place_object_state, contact_end=1.0), dt, 1.5)
     release_time = 0.6 + 0.1 * np.log(30.0)
     assert_sequence(record, [(Phase.REACH, 0.10), (Phase.CONTACT, 0.52),

@@ -172,3 +172,63 @@ def test_the_run_in_of_a_rolled_pad_clears_the_support():
         # The rolled pad reaches 0.075 m below its centre, 2.5 cm more than the unrolled one.
         lowest_pad_point = height - rho * direction[2] - 0.075
         assert lowest_pad_point >= rolled.support_clearance - 1e-12 or direction[2] == 0.0
+
+
+# Shoulder-wrist distance with the elbow straight: upper arm plus forearm (URDF d3 + d5) [m].
+SHOULDER_WRIST_MAX = {'left': 0.4 + 0.4, 'right': 0.42 + 0.4}
+FRONT_TABLE_PLACE = np.array([0.75, 0.0, 0.25])
+
+
+def largest_wrist_overreach(p_world_object, offset):
+    """Return the largest shoulder-wrist distance beyond the straight arm [m], from geometry."""
+    excess = []
+    for arm in ARMS:
+        frame = grasp_frame(arm, p_world_object, np.eye(3), CUBE, offset)
+        wrist = frame.p_world_grasp - WRIST_TO_TOOL * frame.normal
+        excess.append(np.linalg.norm(wrist - SHOULDER[arm]) - SHOULDER_WRIST_MAX[arm])
+    return max(excess)
+
+
+def test_shifts_both_ways_go_toward_the_arms_first():
+    config = ReachabilityConfig()
+    one_way = grasp_shifts(CUBE, config)
+    both = grasp_shifts(CUBE, config, both_ways=True)
+    assert both[0] == 0.0 and len(both) == 2 * len(one_way) - 1
+    assert both[1::2] == tuple(-shift for shift in one_way[1:])
+    assert both[2::2] == one_way[1:]
+
+
+def test_a_box_to_be_set_down_is_grasped_where_the_arms_reach_the_place(models, cell):
+    """
+    The paper cube set down on the front table at x = 0.75 m.
+
+    Grasped at its face centres, a wrist would lie beyond its straight arm there; the planner
+    shifts the grasp toward the arms until both wrists are place_wrist_margin inside, and the
+    shifted grasp is reached at the pallet.
+    """
+    config = ReachabilityConfig()
+    home = {arm: cell.arm(arm).q_home for arm in ARMS}
+    p_world_object = np.array([0.41, 0.0, CUBE_HEIGHT])
+    free = plan_grasp(models, home, p_world_object, np.eye(3), CUBE, config, 0.02)
+    assert free.reachable and free.offset[0] == 0.0
+    assert largest_wrist_overreach(FRONT_TABLE_PLACE, free.offset) > 0.01
+    plan = plan_grasp(models, home, p_world_object, np.eye(3), CUBE, config, 0.02,
+                      place=(FRONT_TABLE_PLACE, np.eye(3)))
+    assert plan.reachable and plan.reason == '' and plan.offset[0] < 0.0
+    assert largest_wrist_overreach(FRONT_TABLE_PLACE, plan.offset) <= (
+        -config.place_wrist_margin + 1e-9)
+    for arm in ARMS:
+        frame = grasp_frame(arm, p_world_object, np.eye(3), CUBE, plan.offset, plan.roll)
+        p_world_tool, _ = models[arm].tool_pose(plan.solutions[arm].q)
+        assert np.linalg.norm(p_world_tool - frame.p_world_grasp) <= config.position_tolerance
+
+
+def test_a_place_beyond_the_arms_is_refused_before_the_reach(models, cell):
+    home = {arm: cell.arm(arm).q_home for arm in ARMS}
+    far_place = FRONT_TABLE_PLACE + [0.25, 0.0, 0.0]
+    largest_shift = max(grasp_shifts(CUBE, ReachabilityConfig(), 0.5 * math.pi))
+    assert largest_wrist_overreach(far_place, [-largest_shift, 0.0, 0.0]) > 0.0
+    plan = plan_grasp(models, home, np.array([0.41, 0.0, CUBE_HEIGHT]), np.eye(3), CUBE,
+                      ReachabilityConfig(), 0.02, place=(far_place, np.eye(3)))
+    assert not plan.reachable and 'out of reach' in plan.reason
+    assert 'place [1.0, 0.0, 0.25] m' in plan.reason

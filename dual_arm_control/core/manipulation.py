@@ -143,6 +143,14 @@ class PlaceConfig:
         'descent_start_distance.', unit='m', low=0, high=1.0, high_open=True)
     max_speed: float = setting(
         0.85, 'Speed cap of the object.', unit='m/s', low=0, high=3.0, low_open=True)
+    lift_height: float = setting(
+        0.03, 'The object travels at least this far above the height it was picked up at, so '
+        "it leaves its support before crossing the support's edge (a box carried straight "
+        'toward a lower place dragged along the pallet).', unit='m', low=0, high=0.5)
+    descent_speed: float = setting(
+        0.15, "Cap of the object's downward speed: carried above its pick height, the box "
+        "drops up to 0.1 m onto the place, which the DS's rate alone took at up to 0.37 m/s.",
+        unit='m/s', low=0, high=3.0, low_open=True)
     yaw_deg: float = setting(
         0.0, 'Yaw of the object when put down, world frame: the carry turns it upright to this '
         "yaw (the carried object's orientation DS), so a box picked up to 25 deg "
@@ -336,27 +344,35 @@ def lift_velocity(x_object, config, coordination):
     return saturated_velocity(velocity, config.max_speed)
 
 
-def place_target(x_object, config):
+def place_target(x_object, config, pick_height=None):
     """
     Return the moving target (3,) [m] of the place DS.
 
-    The place position raised by approach_height * w, w = 1 beyond descent_start_distance
-    (horizontal) and 0 inside descent_end_distance (smoothstep between): the object travels at
-    the approach height, then descends onto the place once above it.
+    The place position raised by w times the travel height, w = 1 beyond
+    descent_start_distance (horizontal) and 0 inside descent_end_distance (smoothstep between):
+    the object travels high, then descends onto the place once above it. The travel height is
+    approach_height above the place, and at least lift_height above pick_height [m] (world z
+    of the object where it was picked up), when given.
     """
     place = np.asarray(config.position, dtype=float)
+    travel = config.approach_height
+    if pick_height is not None:
+        travel = max(travel, pick_height + config.lift_height - place[2])
     horizontal = np.hypot(x_object[0] - place[0], x_object[1] - place[1])
     weight = speed_blend_weight(horizontal, config.descent_end_distance,
                                 config.descent_start_distance)
-    return place + np.array([0.0, 0.0, config.approach_height * weight])
+    return place + np.array([0.0, 0.0, travel * weight])
 
 
-def place_velocity(x_object, config, coordination):
+def place_velocity(x_object, config, coordination, pick_height=None):
     """
     Return the object velocity (3,) [m/s] of the pick-and-place DS, capped at max_speed.
 
-    -k_abs (x^o - place_target(x^o)): linear near the place, so the object slows to zero on it.
+    -k_abs (x^o - place_target(x^o)): linear near the place, so the object slows to zero on it;
+    its downward component no faster than descent_speed.
     """
     x_object = finite_array('x_object', x_object, (3,))
-    velocity = -coordination.absolute_gain * (x_object - place_target(x_object, config))
+    velocity = -coordination.absolute_gain * (x_object - place_target(x_object, config,
+                                                                      pick_height))
+    velocity[2] = max(velocity[2], -config.descent_speed)
     return saturated_velocity(velocity, config.max_speed)

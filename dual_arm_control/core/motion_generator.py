@@ -57,12 +57,10 @@ class DualArmMotionGenerator:
         self._held_object = HeldObjectEstimate()
         self._resting_object = RestingObjectFilter()
         self._release_object_velocity = self._toss_velocity = np.zeros(3)
-        self._grasp_offset = np.zeros(3)
-        self._grasp_roll = 0.0
+        self._grasp_offset, self._grasp_roll = np.zeros(3), 0.0
         self._elbow_reaches = None
         self._belt_velocity = np.zeros(3)
-        self._grasped_rotation = None
-        self._halt = None
+        self._grasped_rotation = self._pick_height = self._halt = None
         self.reconfigure(config)
 
     @property
@@ -247,7 +245,7 @@ class DualArmMotionGenerator:
         else:
             self._object_speed.reset(config.impact.impact_speed)
             self._toss_feedback.reset()
-            speed = self._object_speed.speed
+            speed, self._pick_height = self._object_speed.speed, float(p_object[2])
         if config.task in TOSS_TASKS:
             velocity = boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity,
                                         speed)
@@ -258,7 +256,8 @@ class DualArmMotionGenerator:
                 return self._toss_feedback.update(velocity, v_object, dt)
             return velocity
         if config.task is Task.PICK_AND_PLACE:
-            velocity = place_velocity(p_object, config.place, config.coordination)
+            velocity = place_velocity(p_object, config.place, config.coordination,
+                                      self._pick_height)
         else:
             velocity = lift_velocity(p_object, config.lift, config.coordination)
         return saturated_velocity(velocity, speed)

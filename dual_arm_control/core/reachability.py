@@ -8,12 +8,19 @@ frames with inverse kinematics before the reach starts, shifting the grasp point
 faces (toward +x of the object, away from the arms' bases, as far as the pad stays on the face)
 and rolling the pads a quarter turn about the face normals (a narrower extent along the face,
 so a longer shift) when the centred ones are out of reach, and says why when nothing helps.
+
+A box to be set down is grasped so that the arms also reach the place: on the front table the
+box's centre lies farther from the shoulders than the arms' straight reach for the narrower
+boxes, and an arm driven there stretches to its elbow singularity and stops short. The grasp
+then shifts toward -x of the object (toward the arms) until every wrist stays a margin inside
+its straight-arm reach at the place.
 """
 
 from dataclasses import dataclass
 import math
 
 from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.elbow_reach import wrist_overreach
 from dual_arm_control.core.geometry import rotation_log, vector_norm
 from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
 from dual_arm_control.core.linear_solve import solve
@@ -58,6 +65,17 @@ class ReachabilityConfig:
         -0.03, "Kept between the pad's end and the face's edge (negative: the pad may overhang "
         'the edge by that much; -0.03 m leaves 80 % of the 0.15 m pad on the face).',
         unit='m', low=-0.1, high=0.5)
+    place_wrist_margin: float = setting(
+        0.01, 'Pick-and-place: at the place every wrist stays this far inside its straight-arm '
+        'reach (A4 = 0), where the controller still moves the pad along the arm (a box whose '
+        'wrists needed the straight arm stopped 5-8 mm short); the grasp shifts toward the '
+        'arms until they do.', unit='m', low=0, high=0.2)
+    max_place_overreach: float = setting(
+        0.05, 'Pick-and-place, when no grasp the pick allows keeps place_wrist_margin: the '
+        'grasp whose wrists lie least beyond the straight arm at the place is taken if that is '
+        'at most this far (the box is then set down short: 12-28 mm at 16-65 mm in '
+        'catalogue_random_place seed 22); beyond it the task is refused.',
+        unit='m', low=0, high=0.2)
 
     def __post_init__(self):
         check_settings(self)
@@ -158,18 +176,21 @@ def inverse_kinematics(model, p_world_target, R_world_target, q_start, config):
                         and orientation_error <= config.orientation_tolerance)
 
 
-def grasp_shifts(size, config, roll=0.0):
+def grasp_shifts(size, config, roll=0.0, both_ways=False):
     """
     Return the grasp shifts [m] to try: centred first, up to the pad end at edge_margin.
 
     roll [rad]: the pads' roll about the face normal, which sets their extent along the face
-    (core.grasp.rolled_pad_half_extents).
+    (core.grasp.rolled_pad_half_extents). The shifts go toward +x of the object, or with
+    both_ways toward -x too (-x first at each length).
     """
     half_extent, _ = rolled_pad_half_extents(roll, config.pad_half_length, config.pad_half_width)
     largest = max(0.5 * float(size[0]) - half_extent - config.edge_margin, 0.0)
     if largest == 0.0 or config.shift_steps == 0:
         return (0.0,)
-    return tuple(largest * step / config.shift_steps for step in range(config.shift_steps + 1))
+    lengths = [largest * step / config.shift_steps for step in range(1, config.shift_steps + 1)]
+    signs = (-1.0, 1.0) if both_ways else (1.0,)
+    return (0.0,) + tuple(sign * length for length in lengths for sign in signs)
 
 
 def grasp_lift(size, config, roll=0.0, support_clearance=0.0):
@@ -189,7 +210,7 @@ def grasp_lift(size, config, roll=0.0, support_clearance=0.0):
     return lift
 
 
-def grasp_candidates(size, config, support_clearance=0.0):
+def grasp_candidates(size, config, support_clearance=0.0, both_ways=False):
     """
     Return the grasps to try, (roll [rad], offset (3,) [m] object frame), in order of preference.
 
@@ -201,14 +222,14 @@ def grasp_candidates(size, config, support_clearance=0.0):
     base (the elbow, A4, folds at most 120 deg). Within a roll the smaller shift comes first:
     it leaves the box's weight the shorter lever about the squeeze axis. Each grasp point is
     raised by grasp_lift, so the pad clears the surface the box rests on by support_clearance
-    [m]; a roll whose pad cannot is left out.
+    [m]; a roll whose pad cannot is left out. both_ways: shift toward -x of the object too.
     """
     candidates = []
     for roll in PAD_ROLLS:
         lift = grasp_lift(size, config, roll, support_clearance)
         if lift is not None:
             candidates.extend((roll, np.array([shift, 0.0, lift]))
-                              for shift in grasp_shifts(size, config, roll))
+                              for shift in grasp_shifts(size, config, roll, both_ways))
     return tuple(candidates)
 
 
@@ -222,7 +243,7 @@ def _solve(models, q_start, p_world_object, R_world_object, size, offset, roll, 
 
 
 def plan_grasp(models, q_current, p_world_object, R_world_object, size, config,
-               support_clearance=0.0):
+               support_clearance=0.0, place=None):
     """
     Return the GraspPlan of a box (pose, size (3,) [m]) for both arms ({arm: ArmModel}).
 
@@ -232,18 +253,60 @@ def plan_grasp(models, q_current, p_world_object, R_world_object, size, config,
     grasp point on the face by what the arms missed it by, in object x and z, was tried too:
     on 100 catalogue trials it made no unreachable grasp reachable. Taking the reachable grasp
     with the most joint-limit margin instead of the first: 35 % success on catalogue_random
-    seed 11 against 41 %.)
+    seed 11 against 41 %.) place: the box's pose (p (3,) [m], R (3, 3)) where it is to be set
+    down, or None; given, the grasps shift both ways and place_order ranks them.
     """
+    candidates = grasp_candidates(size, config, support_clearance, both_ways=place is not None)
+    order, place_reason = range(len(candidates)), ''
+    if place is not None:
+        order, place_reason = place_order(models, candidates, place, size, config)
     first = None
-    for roll, offset in grasp_candidates(size, config, support_clearance):
+    for index in order:
+        roll, offset = candidates[index]
         solutions = _solve(models, q_current, p_world_object, R_world_object, size, offset,
                            roll, config)
         if all(solution.reachable for solution in solutions.values()):
             return GraspPlan(offset, True, '', solutions, roll)
         first = first or solutions
+    if first is None:
+        roll, offset = candidates[0]
+        return GraspPlan(np.zeros(3), False, place_reason, _solve(
+            models, q_current, p_world_object, R_world_object, size, offset, roll, config))
     unreachable = [arm for arm in ARMS if not first[arm].reachable]
     reason = '; '.join(
         f'{arm} arm misses its grasp frame by {1000.0 * first[arm].position_error:.0f} mm, '
         f'{math.degrees(first[arm].orientation_error):.0f} deg within its joint limits '
         f'(margin {config.joint_margin:g} rad)' for arm in unreachable)
+    if place is not None:
+        reason += (f' with every grasp that reaches the place (within '
+                   f'{1000.0 * config.max_place_overreach:.0f} mm)')
     return GraspPlan(np.zeros(3), False, reason, first)
+
+
+def place_order(models, candidates, place, size, config):
+    """
+    Return (candidate indices to try, why none is left) for a box to be set down at place.
+
+    place: the box's pose at the place (p (3,) [m], R (3, 3)). The candidates whose wrists all
+    stay place_wrist_margin inside their straight-arm reach there (core.elbow_reach
+    .wrist_overreach) come first, in their order; then, least overreach first, those whose
+    wrists lie at most max_place_overreach beyond it: a box grasped near the arms' bases
+    (shifted toward +x to be reached there) is set down short rather than refused. A grasp
+    with a wrist farther out is left out: the arm would stop short with the box held above
+    the table.
+    """
+    reaches = {arm: models[arm].elbow_reach() for arm in ARMS}
+    p_world_place, R_world_place = place
+    overreach = [wrist_overreach(reaches, p_world_place, R_world_place, size, offset, roll)
+                 for roll, offset in candidates]
+    clear = [index for index, excess in enumerate(overreach)
+             if excess <= -config.place_wrist_margin]
+    short = sorted((index for index, excess in enumerate(overreach)
+                    if -config.place_wrist_margin < excess <= config.max_place_overreach),
+                   key=overreach.__getitem__)
+    reason = ''
+    if not clear and not short:
+        reason = (f'place {np.round(np.asarray(p_world_place, dtype=float), 3).tolist()} m out '
+                  f'of reach: with any grasp on the faces a wrist lies at least '
+                  f'{1000.0 * min(overreach):.0f} mm beyond its straight-arm reach there')
+    return clear + short, reason

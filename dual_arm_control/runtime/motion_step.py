@@ -39,10 +39,11 @@ from dataclasses import dataclass
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import UnreachableTargetError
 from dual_arm_control.core.exceptions import InputError
+from dual_arm_control.core.manipulation import place_rotation
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
 from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement, ObjectMeasurement
 from dual_arm_control.core.moving_grab import grab_wait_reason, predicted_box_position
-from dual_arm_control.core.phases import Phase
+from dual_arm_control.core.phases import Phase, Task
 from dual_arm_control.core.reachability import plan_grasp
 from dual_arm_control.runtime.configuration import config_for_landing_target
 from dual_arm_control.runtime.controller_watch import ControllerWatch
@@ -318,12 +319,19 @@ class MotionGeneratorStep:
         return ''
 
     def _adopt_grasp_plan(self, joints, position, rotation):
-        """Plan the grasp of the box at (position, rotation); a reachable one is the grasp."""
+        """
+        Plan the grasp of the box at (position, rotation); a reachable one is the grasp.
+
+        A box to be set down is grasped where the arms also reach the place.
+        """
         config = self._generator.config
+        place = None
+        if config.task is Task.PICK_AND_PLACE:
+            place = (np.asarray(config.place.position, dtype=float), place_rotation(config.place))
         self.grasp_plan = plan_grasp(
             self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
             np.asarray(config.object_size), config.reachability,
-            config.impact.support_clearance)
+            config.impact.support_clearance, place)
         if self.grasp_plan.reachable:
             self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
         return self.grasp_plan
