@@ -245,7 +245,8 @@ class DualArmMotionGenerator:
         else:
             self._object_speed.reset(config.impact.impact_speed)
             self._toss_feedback.reset()
-            speed, self._pick_height = self._object_speed.speed, float(p_object[2])
+            speed = self._object_speed.speed
+            self._pick_height = float(p_object[2])
         if config.task in TOSS_TASKS:
             velocity = boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity,
                                         speed)

@@ -98,7 +98,8 @@ class GraspPlan:
 
     roll [rad]: both pads' roll about their face normals (core.grasp.grasp_frame); reachable:
     both arms reach their grasp frames; reason: why not (empty when reachable); solutions
-    {arm: PoseSolution} of the chosen (or, unreachable, the centred unrolled) grasp.
+    {arm: PoseSolution} of the chosen (or, unreachable, the first tried) grasp; empty when the
+    place left no grasp to try.
     """
 
     offset: np.ndarray
@@ -269,9 +270,7 @@ def plan_grasp(models, q_current, p_world_object, R_world_object, size, config,
             return GraspPlan(offset, True, '', solutions, roll)
         first = first or solutions
     if first is None:
-        roll, offset = candidates[0]
-        return GraspPlan(np.zeros(3), False, place_reason, _solve(
-            models, q_current, p_world_object, R_world_object, size, offset, roll, config))
+        return GraspPlan(np.zeros(3), False, place_reason, {})
     unreachable = [arm for arm in ARMS if not first[arm].reachable]
     reason = '; '.join(
         f'{arm} arm misses its grasp frame by {1000.0 * first[arm].position_error:.0f} mm, '
