@@ -34,7 +34,8 @@ def cell():
 
 
 @pytest.mark.parametrize('target', [(0.75, -0.3, 0.25), (0.85, 0.0, 0.25), (0.95, 0.15, 0.25),
-                                    (1.0, -0.15, 0.25), (0.80, 0.2, 0.30)])
+                                    (1.0, -0.15, 0.25), (0.80, 0.2, 0.30),
+                                    (1.15, -0.3, 0.25), (1.15, 0.3, 0.25)])
 def test_the_planned_release_lands_on_the_target_within_the_limits(target):
     target = np.array(target)
     plan = plan_release(target, NOMINAL, CONFIG)
@@ -47,6 +48,7 @@ def test_the_planned_release_lands_on_the_target_within_the_limits(target):
     assert CONFIG.min_elevation_deg <= elevation <= CONFIG.max_elevation_deg
     assert abs(math.degrees(math.atan2(plan.velocity[1], plan.velocity[0]))) \
         <= CONFIG.max_heading_deg
+    assert abs(plan.velocity[1]) <= CONFIG.max_lateral_speed + 1e-9
     for value, (low, high) in zip(plan.position, (CONFIG.x_range, CONFIG.y_range,
                                                   CONFIG.z_range)):
         assert low - 1e-9 <= value <= high + 1e-9
@@ -60,7 +62,8 @@ def test_a_near_target_is_thrown_at_the_task_speed_and_a_far_one_faster():
 
 
 @pytest.mark.parametrize('target, limit', [((1.6, 0.0, 0.25), 'max_release_speed'),
-                                           ((0.70, 0.6, 0.25), 'max_heading_deg')])
+                                           ((0.70, 0.6, 0.25), 'max_heading_deg'),
+                                           ((0.85, -0.45, 0.25), 'max_lateral_speed')])
 def test_a_target_no_release_serves_is_refused_with_the_limit(target, limit):
     with pytest.raises(UnreachableTargetError, match=limit):
         plan_release(np.array(target), NOMINAL, CONFIG)

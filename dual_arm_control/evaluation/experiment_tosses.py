@@ -251,6 +251,7 @@ def run_toss_to_target(out_dir, limit=None):
             'landing_offset': None if result['landing_position'] is None else
             (np.asarray(result['landing_position'][:2]) - target[:2]).tolist(),
             'hit': error is not None and error <= LANDING_LIMIT, 'success': result['success'],
+            'max_joint_speed_ratio': max(result[f'max_joint_speed_ratio_{arm}'] for arm in ARMS),
             **{key: result.get(key) for key in (
                 'release_position_error', 'release_speed_error', 'release_direction_error',
                 'release_velocity_error', 'landing_prediction_error', 'max_slip',

@@ -340,7 +340,8 @@ def toss_to_target_section(results, link_root):
              number(row['landing_error'], 1, 1000.0),
              number(row.get('release_speed_error'), 1, 100.0),
              number(row.get('release_direction_error'), 1),
-             number(row['max_slip'], 1, 1000.0), 'yes' if row['hit'] else 'no')
+             number(row['max_slip'], 1, 1000.0), number(row.get('max_joint_speed_ratio'), 1),
+             'yes' if row['hit'] else 'no')
             for row in ttt['targets']]
     errors, bias = ttt['landing_error'], ttt.get('landing_bias') or [None, None]
     refused = ttt.get('refused', [])
@@ -362,11 +363,14 @@ def toss_to_target_section(results, link_root):
         f' Ballistic prediction from the measured release state vs measured landing: mean '
         f'{number(ttt["landing_prediction_error"]["mean"], 1, 1000.0, "mm")}. Success (all '
         f'episode criteria, pad slip <= 10 mm included): {ttt["success_count"]}/'
-        f'{len(ttt["targets"])}.',
+        f'{len(ttt["targets"])}. The twin does not enforce the iiwa\'s joint speed limits; '
+        f'the column before last is the largest |qdot| / limit of either arm in the episode '
+        f'(the KUKA controller stops an arm above 1).',
         '',
         table(('target (x, y) [m]', 'release point [m]', 'release speed [m/s]',
                'elevation [deg]', 'landing error [mm]', 'release speed error [%]',
-               'release direction error [deg]', 'slip [mm]', 'hit'), rows),
+               'release direction error [deg]', 'slip [mm]', 'worst joint speed / limit',
+               'hit'), rows),
         '',
         *(f'Refused: ({item["target"][0]:.2f}, {item["target"][1]:+.2f}): {item["reason"]}'
           for item in refused), '',
