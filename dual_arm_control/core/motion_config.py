@@ -47,9 +47,13 @@ class MotionGeneratorConfig:
         3.0, 'Per-arm point attractor gain toward standby (and on retract).',
         unit='1/s', low=0, high=100.0, low_open=True)
     max_linear_speed: float = setting(
-        2.0, 'Every tool velocity command is capped to this: above '
-        'release_planning.max_release_speed (1.8), with room for the release-speed loop.',
-        unit='m/s', low=0, high=3.0, low_open=True)
+        1.4, 'Every tool velocity command is capped to this, but those of the carry and the '
+        'release (max_carry_speed).', unit='m/s', low=0, high=3.0, low_open=True)
+    max_carry_speed: float = setting(
+        2.0, 'The cap on the tool velocity commands that carry the object and release it: above '
+        'release_planning.max_release_speed (1.8), with room for the release-speed loop. The '
+        'reach and the retract keep max_linear_speed.', unit='m/s', low=0, high=3.0,
+        low_open=True)
     release_opening_speed: float = setting(
         0.3, 'Speed at which the pads move apart along their normals at release.',
         unit='m/s', low=0, high=2.0, low_open=True)

@@ -336,7 +336,7 @@ class DualArmMotionGenerator:
             p_tools.reshape(6), object_velocity,
             desired_relative_velocity(grasp_points, omega_object), grasp_points,
             config.coordination).reshape(2, 3)
-        velocity = saturated_velocity(velocity, config.max_linear_speed)
+        velocity = saturated_velocity(velocity, config.max_carry_speed)
         commands = {}
         for index, arm in enumerate(ARMS):
             R_target = frames[arm].R_world_grasp
@@ -358,7 +358,7 @@ class DualArmMotionGenerator:
         for index, arm in enumerate(ARMS):
             normal = frames[arm].normal
             velocity = self._release_object_velocity - config.release_opening_speed * normal
-            velocity = saturated_velocity(velocity, config.max_linear_speed)
+            velocity = saturated_velocity(velocity, config.max_carry_speed)
             R_target = frames[arm].R_world_grasp
             commands[arm] = ArmCommand(
                 velocity,

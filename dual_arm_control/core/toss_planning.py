@@ -47,7 +47,7 @@ class ReleasePlanningConfig:
         'corners of the 0.4 x 0.6 m landing region (x 1.15 m, y +-0.3 m) need 1.66-1.79 m/s '
         'from the release region; the twin releases the paper cube at 1.8 m/s within 2 % of '
         'its speed and 2 deg of its direction, pads slipping <= 6 mm (toss_to_target), but its '
-        "joints then run up to ~6x the iiwa's speed limits (see README, known limits).",
+        "joints then run up to 7x the iiwa's speed limits (see README, known limits).",
         unit='m/s', low=0, high=3.0, low_open=True)
     max_lateral_speed: float = setting(
         1.0, 'Largest release speed along world y (sideways): the bases lie on the y axis, so '
