@@ -116,8 +116,7 @@ def plan_release(target, nominal_position, config, gravity=STANDARD_GRAVITY):
     speed = np.maximum(least_speed, config.min_release_speed)
     elevation = _elevations(r, z, speed, gravity, config)
     heading = np.degrees(np.arctan2(delta[:, 1], delta[:, 0]))
-    with np.errstate(invalid='ignore', divide='ignore'):
-        lateral = speed * np.cos(elevation) * np.abs(delta[:, 1]) / r
+    lateral = speed * np.cos(elevation) * np.abs(np.sin(np.radians(heading)))
     misses = ((speed > config.max_release_speed, 'it needs {speed:.2f} m/s, above '
                f'max_release_speed {config.max_release_speed:g} m/s'),
               (np.abs(heading) > config.max_heading_deg, 'it needs a heading of {heading:.0f} '
