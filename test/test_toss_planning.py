@@ -130,18 +130,27 @@ def test_a_target_after_the_release_or_out_of_reach_is_refused(cell):
     assert metrics['release_position_error'] <= 0.01
 
 
-def test_a_box_thrown_across_toward_one_arm_flies_clear_of_its_pad(cell):
+@pytest.mark.parametrize('mass, position, yaw, seed, target', [
+    # toss_to_target_random seed 3 trial 199: the box 2.5 cm closer, 2.6 cm right, turned
+    # -13 deg; without clear_of_the_box the right pad struck it 140 ms after the release.
+    (0.9, (0.386, -0.026), -0.228, 761605522, (0.92, -0.284)),
+    # Seed 61 trial 30 (digits as drawn): turned +10 deg, thrown 0.79 m/s along -y; with the
+    # pad moved away along the full offset from the box's centre, the falling box read as
+    # receding while its face ran into the pad, and landed 6.6 cm off.
+    (1.041885939897496, (0.4223104401083776, -0.03701268312766583), 0.17082179024957342,
+     1846787719, (0.8820210814656504, -0.29653464747252173))])
+def test_a_box_thrown_across_toward_one_arm_flies_clear_of_its_pad(cell, mass, position, yaw,
+                                                                   seed, target):
     """
-    A target far to the right: the box leaves at 0.65 m/s along -y, toward the right pad.
+    A target far to the right: the box leaves along -y, toward the right pad.
 
     The retracting pad must not be in its way: no pad touches the box between the release and
-    the landing (without clear_of_the_box the right pad struck it 140 ms after the release).
+    the landing.
     """
     base = load_scenario('paper_toss', cell=cell)
-    # toss_to_target_random trial 199: the box 2.5 cm closer, 2.6 cm right, turned -13 deg.
-    box = replace(base.object, mass=0.9, position=np.array([0.386, -0.026, 0.32]), yaw=-0.228)
-    scenario = replace(base, task='toss_to_target', release=None, object=box, seed=761605522,
-                       landing_target=np.array([0.92, -0.284, 0.25]))
+    box = replace(base.object, mass=mass, position=np.array([*position, 0.32]), yaw=yaw)
+    scenario = replace(base, task='toss_to_target', release=None, object=box, seed=seed,
+                       landing_target=np.array([*target, 0.25]))
     trajectory = run_episode(scenario, cell=cell).trajectory
     metrics = episode_metrics(scenario, trajectory, cell)
     assert metrics['release_velocity'][1] < -0.4
@@ -152,10 +161,12 @@ def test_a_box_thrown_across_toward_one_arm_flies_clear_of_its_pad(cell):
         assert not trajectory[f'{arm}_pad_contact'][released].any(), arm
 
 
-def test_a_pad_near_a_box_coming_toward_it_moves_away_faster_than_it_comes():
+@pytest.mark.parametrize('fall_speed', [0.0, 1.0])
+def test_a_pad_near_a_box_coming_toward_it_moves_away_faster_than_it_comes(fall_speed):
+    """Away is horizontal: a box falling past a pad above its centre still comes toward it."""
     p_tool, p_box = np.array([0.8, -0.34, 0.59]), np.array([0.82, -0.20, 0.48])
-    away = (p_tool - p_box) / np.linalg.norm(p_tool - p_box)
-    v_box = np.array([0.75, -0.65, 0.0])
+    away = np.array([-0.02, -0.14, 0.0]) / np.hypot(0.02, 0.14)
+    v_box = np.array([0.75, -0.65, -fall_speed])
     retract = np.array([-0.3, 0.0, 0.0])
     cleared = clear_of_the_box(retract, p_tool, p_box, v_box, 0.3, 0.3)
     assert cleared @ away == pytest.approx(v_box @ away + 0.3)
@@ -163,9 +174,10 @@ def test_a_pad_near_a_box_coming_toward_it_moves_away_faster_than_it_comes():
                                retract - (retract @ away) * away, atol=1e-12)
     fast = retract + 2.0 * away
     np.testing.assert_array_equal(clear_of_the_box(fast, p_tool, p_box, v_box, 0.3, 0.3), fast)
-    receding = np.array([0.75, 0.65, 0.0])
+    receding = np.array([0.75, 0.65, -fall_speed])
     np.testing.assert_array_equal(clear_of_the_box(retract, p_tool, p_box, receding, 0.3, 0.3),
                                   retract)
     far = p_box + 0.31 * away
     np.testing.assert_array_equal(clear_of_the_box(retract, far, p_box, v_box, 0.3, 0.3),
                                   retract)
+

@@ -59,7 +59,7 @@ class MotionGeneratorConfig:
         unit='m/s', low=0, high=2.0, low_open=True)
     release_clearance: float = setting(
         0.3, "Within this distance of the box's centre a retracting tool moves away from a box "
-        'that comes toward it, at its closing speed plus release_opening_speed '
+        'that comes toward it, horizontally, at its closing speed plus release_opening_speed '
         '(core.release.clear_of_the_box); 0 switches it off.', unit='m', low=0, high=2.0)
     toss_speed_time_constant: float = setting(
         0.05, "The object's desired speed rises from the impact speed to the toss speed with "
