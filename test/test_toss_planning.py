@@ -180,4 +180,3 @@ def test_a_pad_near_a_box_coming_toward_it_moves_away_faster_than_it_comes(fall_
     far = p_box + 0.31 * away
     np.testing.assert_array_equal(clear_of_the_box(retract, far, p_box, v_box, 0.3, 0.3),
                                   retract)
-
