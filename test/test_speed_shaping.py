@@ -4,6 +4,7 @@ from dataclasses import replace
 import math
 
 from dual_arm_control.core.exceptions import ConfigError, InputError
+from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
 from dual_arm_control.core.speed_shaping import (
@@ -95,6 +96,15 @@ def test_speed_filter_rejects_bad_inputs():
 def test_config_rejects_bad_values_naming_the_field(field, value):
     with pytest.raises(ConfigError, match=field):
         SpeedProfileConfig(**{field: value})
+
+
+@pytest.mark.parametrize('changes, name', [
+    ({'max_carry_speed': 1.5}, 'release_planning.max_release_speed'),
+    ({'toss': TossConfig(toss_speed=2.2)}, 'toss.toss_speed')])
+def test_a_release_faster_than_the_carry_cap_is_refused_naming_both(changes, name):
+    """The carry's tool-speed cap must let the box reach every release speed it may be given."""
+    with pytest.raises(ConfigError, match=f'{name} = .* exceeds max_carry_speed'):
+        MotionGeneratorConfig(**changes)
 
 
 def test_the_speed_loop_makes_up_a_lagging_tracker_without_turning_the_direction():

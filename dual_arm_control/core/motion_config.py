@@ -51,8 +51,9 @@ class MotionGeneratorConfig:
         'release (max_carry_speed).', unit='m/s', low=0, high=3.0, low_open=True)
     max_carry_speed: float = setting(
         2.0, 'The cap on the tool velocity commands that carry the object and release it: above '
-        'release_planning.max_release_speed (1.8), with room for the release-speed loop. The '
-        'reach and the retract keep max_linear_speed.', unit='m/s', low=0, high=3.0,
+        'release_planning.max_release_speed (1.8), with room for the release-speed loop; a '
+        'toss.toss_speed or max_release_speed above it is refused. The reach and the retract '
+        'keep max_linear_speed.', unit='m/s', low=0, high=3.0,
         low_open=True)
     release_opening_speed: float = setting(
         0.3, 'Speed at which the pads move apart along their normals at release.',
@@ -94,6 +95,13 @@ class MotionGeneratorConfig:
         for rotation in rotations:
             if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6):
                 raise ConfigError('standby_rotations must be rotation matrices')
+        for name, speed in (('toss.toss_speed', self.toss.toss_speed),
+                            ('release_planning.max_release_speed',
+                             self.release_planning.max_release_speed)):
+            if speed > self.max_carry_speed:
+                raise ConfigError(
+                    f'{name} = {speed:g} m/s exceeds max_carry_speed = '
+                    f'{self.max_carry_speed:g} m/s: the carry could not reach that release speed')
 
     def arrival_synchroniser(self):
         """
