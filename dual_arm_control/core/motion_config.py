@@ -53,8 +53,7 @@ class MotionGeneratorConfig:
         2.0, 'The cap on the tool velocity commands that carry the object and release it: above '
         'release_planning.max_release_speed (1.8), with room for the release-speed loop; a '
         'toss.toss_speed or max_release_speed above it is refused. The reach and the retract '
-        'keep max_linear_speed.', unit='m/s', low=0, high=3.0,
-        low_open=True)
+        'keep max_linear_speed.', unit='m/s', low=0, high=3.0, low_open=True)
     release_opening_speed: float = setting(
         0.3, 'Speed at which the pads move apart along their normals at release.',
         unit='m/s', low=0, high=2.0, low_open=True)
