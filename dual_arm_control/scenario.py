@@ -7,10 +7,10 @@ position, task speeds, scripted perturbations, duration, initial joint configura
 models of the twin, and optionally the ranges a batch evaluation draws its trials from
 (dual_arm_control.randomization). Positions given as [x, y] rest on the surface below
 (pallet, front table or floor of config/cell.yaml). Every error names the file and the
-dotted key. scenario_document writes a Scenario back as such a file.
+dotted key. dual_arm_control.scenario_writer writes a Scenario back as such a file.
 """
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 import math
 from pathlib import Path
 
@@ -25,16 +25,18 @@ from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.core.validation import check_range, frozen_vector
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.incoming_belt import IncomingBeltConfig
-from dual_arm_control.randomization import (Randomization, randomization_document,
-                                            read_randomization)
+from dual_arm_control.randomization import Randomization, read_randomization
 from dual_arm_control.resources import config_path, load_yaml, require
-from dual_arm_control.scenario_reader import ScenarioReader, settings_document
-from dual_arm_control.sensor_models import MocapConfig, read_sensor_config, SensorConfig
+from dual_arm_control.scenario_reader import ScenarioReader
+from dual_arm_control.sensor_models import read_sensor_config, SensorConfig
 import numpy as np
 
 TASKS = ('pick_and_toss', 'pick_and_place', 'pick_and_lift', 'place_toss', 'toss_to_target')
 TOSS_TASKS = ('pick_and_toss', 'toss_to_target')
 PLACE_TASKS = ('pick_and_place', 'place_toss')
+# Largest difference [m/s] between speeds.toss and |release.velocity| taken as agreement
+# (release velocities are written to 4 decimals: the paper's [0.7603, 0, 0.3801] is 0.85002).
+TOSS_SPEED_TOLERANCE = 0.005
 
 
 @dataclass(frozen=True)
@@ -88,14 +90,21 @@ _SPEED_SETTINGS = {'reach': (SpeedProfileConfig, 'reach_speed'),
 
 @dataclass(frozen=True)
 class Speeds:
-    """Task speeds [m/s]: reach (approach), impact (at contact) and toss (at release)."""
+    """
+    Task speeds [m/s]: reach (approach), impact (at contact) and toss (at release).
+
+    toss may be None (left out): a scenario's release velocity sets the toss speed, and the
+    release planner chooses it for a landing target (Scenario checks that they agree).
+    """
 
     reach: float = SpeedProfileConfig.reach_speed
     impact: float = ImpactConfig.impact_speed
-    toss: float = TossConfig.toss_speed
+    toss: object = None
 
     def __post_init__(self):
         for name, (config_class, setting) in _SPEED_SETTINGS.items():
+            if getattr(self, name) is None and name == 'toss':
+                continue
             try:
                 config_class(**{setting: getattr(self, name)})
             except ConfigError as error:
@@ -163,6 +172,7 @@ class Scenario:
             raise ConfigError('task toss_to_target needs landing_target')
         if self.release is not None and self.landing_target is not None:
             raise ConfigError('give either release or landing_target, not both')
+        self._check_toss_speed()
         if self.task in PLACE_TASKS and self.place is None:
             raise ConfigError(f'task {self.task} needs place')
         if self.release_orientation is not None:
@@ -187,6 +197,23 @@ class Scenario:
                 and self.landing_target is None):
             raise ConfigError('randomization.landing_target offsets the landing_target, and '
                               'the scenario has none (task toss_to_target)')
+
+    def _check_toss_speed(self):
+        """Refuse a speeds.toss that the release velocity or the release planner would override."""
+        toss = self.speeds.toss
+        if toss is None:
+            return
+        if self.landing_target is not None:
+            raise ConfigError(
+                f'speeds.toss = {toss:g} m/s is not used with a landing_target: the release '
+                f'planner chooses the release speed; leave speeds.toss out')
+        if self.release is not None:
+            release_speed = float(np.linalg.norm(self.release.velocity))
+            if abs(toss - release_speed) > TOSS_SPEED_TOLERANCE:
+                raise ConfigError(
+                    f'speeds.toss = {toss:g} m/s disagrees with |release.velocity| = '
+                    f'{release_speed:.4g} m/s: the release velocity sets the toss speed; '
+                    f'leave speeds.toss out or make the two agree')
 
 
 def scenario_path(name_or_path):
@@ -311,7 +338,9 @@ def load_scenario(path, cell=None, catalogue_path=None):
     speeds_entry = reader.mapping(data, 'speeds')
     reader.check_keys(speeds_entry, ('reach', 'impact', 'toss'), 'speeds')
     speeds = reader.build('speeds', Speeds, **{
-        key: reader.number(speeds_entry, key, 'speeds') for key in ('reach', 'impact', 'toss')})
+        key: reader.number(speeds_entry, key, 'speeds') for key in ('reach', 'impact')},
+        toss=(reader.number(speeds_entry, 'toss', 'speeds') if 'toss' in speeds_entry
+              else None))
     duration = reader.number(data, 'duration')
     perturbations = []
     entries = data.get('perturbations') or []
@@ -341,53 +370,3 @@ def load_scenario(path, cell=None, catalogue_path=None):
         incoming_belt=reader.settings_block(data, 'incoming_belt', IncomingBeltConfig),
         randomization=read_randomization(reader, data, catalogue_path),
         path=path)
-
-
-def scenario_document(scenario):
-    """
-    Return scenario as the mapping load_scenario reads (write it with yaml.safe_dump).
-
-    Every value is explicit (object size, mass and friction beside its type, 3D positions,
-    both arms' initial configuration, every sensor field), so loading the document gives back
-    an equal Scenario whatever the catalogue's and the loader's defaults.
-    """
-    def numbers(values):
-        return [float(value) for value in values]
-
-    box = scenario.object
-    object_entry = {} if box.type is None else {'type': box.type}
-    object_entry.update(size=numbers(box.size), mass=float(box.mass),
-                        friction=float(box.friction), position=numbers(box.position),
-                        yaw=float(box.yaw))
-    document = {'name': scenario.name, 'seed': int(scenario.seed), 'task': scenario.task,
-                'object': object_entry}
-    if scenario.release is not None:
-        document['release'] = {'position': numbers(scenario.release.position),
-                               'velocity': numbers(scenario.release.velocity)}
-    if scenario.landing_target is not None:
-        document['landing_target'] = numbers(scenario.landing_target)
-    if scenario.release_orientation is not None:
-        document['release_orientation'] = numbers(scenario.release_orientation)
-    if scenario.place is not None:
-        document['place'] = {'position': numbers(scenario.place)}
-    document['speeds'] = {item.name: float(getattr(scenario.speeds, item.name))
-                          for item in fields(Speeds)}
-    if scenario.perturbations:
-        document['perturbations'] = [
-            {'time': float(item.time), 'object_displacement': numbers(item.object_displacement)}
-            for item in scenario.perturbations]
-    document['duration'] = float(scenario.duration)
-    document['initial_configuration'] = {arm: numbers(scenario.initial_configuration[arm])
-                                         for arm in ARMS}
-    mocap, ft = scenario.sensors.mocap, scenario.sensors.ft
-    document['sensors'] = {
-        'mocap': {item.name: float(getattr(mocap, item.name)) for item in fields(MocapConfig)},
-        'ft': {'force_noise': float(ft.force_noise), 'torque_noise': float(ft.torque_noise),
-               'force_bias': numbers(ft.force_bias), 'torque_bias': numbers(ft.torque_bias)}}
-    if scenario.conveyor is not None:
-        document['conveyor'] = settings_document(scenario.conveyor)
-    if scenario.incoming_belt is not None:
-        document['incoming_belt'] = settings_document(scenario.incoming_belt)
-    if scenario.randomization is not None:
-        document['randomization'] = randomization_document(scenario.randomization)
-    return document

@@ -23,7 +23,8 @@ from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.episode import episode_metrics
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.nodes.messages import stamp_ns
-from dual_arm_control.scenario import load_scenario, scenario_document
+from dual_arm_control.scenario import load_scenario
+from dual_arm_control.scenario_writer import scenario_document
 from dual_arm_control.trajectory_log import ARM_FIELDS, load_trajectory, OBJECT_FIELDS
 from dual_arm_control.trial_sampling import sample_trial
 from graph_helpers import record_episode

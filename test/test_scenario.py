@@ -7,6 +7,7 @@ from dual_arm_control.core.impact import ImpactConfig
 from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.description.cell import load_cell
+from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.scenario import load_scenario, ObjectConfig, Scenario, Speeds
 from dual_arm_control.sensor_models import MocapConfig
 import numpy as np
@@ -154,10 +155,40 @@ def test_task_requirements(tmp_path, cell):
     data['task'] = 'toss_to_target'
     with pytest.raises(ConfigError, match='landing_target'):
         load_scenario(write(tmp_path, data), cell)
-    del data['release']
+    del data['release'], data['speeds']['toss']
     data['landing_target'] = [1.0, 0.1]
     scenario = load_scenario(write(tmp_path, data), cell)
     assert scenario.landing_target == pytest.approx([1.0, 0.1, TABLE_TOP + 0.1])
+
+
+def test_a_toss_speed_the_release_velocity_overrides_is_refused(tmp_path, cell):
+    """speeds.toss may only repeat |release.velocity|: a differing one would be ignored."""
+    data = good_data()
+    data['speeds']['toss'] = 0.5
+    path = write(tmp_path, data)
+    with pytest.raises(ConfigError) as error:
+        load_scenario(path, cell)
+    message = str(error.value)
+    assert str(path) in message and 'speeds.toss' in message and 'release.velocity' in message
+    data['speeds']['toss'] = 0.852
+    assert load_scenario(write(tmp_path, data), cell).speeds.toss == 0.852
+    del data['speeds']['toss']
+    scenario = load_scenario(write(tmp_path, data), cell)
+    assert scenario.speeds.toss is None
+    toss = motion_config_for_scenario(scenario, cell).toss
+    assert toss.toss_speed == pytest.approx(np.linalg.norm([0.76, 0.0, 0.38]), abs=1e-12)
+
+
+def test_a_toss_speed_beside_a_landing_target_is_refused(tmp_path, cell):
+    """The release planner chooses the speed for a landing target; a given one is refused."""
+    data = good_data()
+    data['task'] = 'toss_to_target'
+    del data['release']
+    data['landing_target'] = [1.0, 0.1]
+    path = write(tmp_path, data)
+    with pytest.raises(ConfigError, match='speeds.toss .* landing_target') as error:
+        load_scenario(path, cell)
+    assert str(path) in str(error.value)
 
 
 def test_unknown_scenario_name_names_the_file(cell):
@@ -180,7 +211,9 @@ def test_dataclasses_validate_on_their_own():
     ('reach', SpeedProfileConfig, 'reach_speed'), ('impact', ImpactConfig, 'impact_speed'),
     ('toss', TossConfig, 'toss_speed')])
 def test_task_speeds_have_the_core_settings_defaults_and_ranges(name, config_class, setting):
-    assert getattr(Speeds(), name) == getattr(config_class(), setting)
+    # The toss speed has no default of its own: the release velocity or the planner sets it.
+    default = None if name == 'toss' else getattr(config_class(), setting)
+    assert getattr(Speeds(), name) == default
     for value in (0.0, -0.1, 2.5, 3.5, math.inf):
         try:
             config_class(**{setting: value})

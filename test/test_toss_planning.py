@@ -107,8 +107,9 @@ def test_a_target_given_mid_reach_is_where_the_box_lands(cell):
 def test_the_far_row_is_thrown_at_its_planned_speed_and_lands_on_target(cell):
     """The far row (x = 1.15 m) needs 1.66 m/s, allowed by the carry's cap max_carry_speed."""
     target = np.array([1.15, 0.0, 0.25])
-    scenario = replace(load_scenario('paper_toss', cell=cell), task='toss_to_target',
-                       release=None, landing_target=target)
+    base = load_scenario('paper_toss', cell=cell)
+    scenario = replace(base, task='toss_to_target', release=None, landing_target=target,
+                       speeds=replace(base.speeds, toss=None))
     assert np.linalg.norm(plan_release(target, NOMINAL, CONFIG).velocity) > 1.6
     log = run_episode(scenario, cell=cell)
     metrics = episode_metrics(scenario, log.trajectory, cell)
@@ -150,7 +151,8 @@ def test_a_box_thrown_across_toward_one_arm_flies_clear_of_its_pad(cell, mass, p
     base = load_scenario('paper_toss', cell=cell)
     box = replace(base.object, mass=mass, position=np.array([*position, 0.32]), yaw=yaw)
     scenario = replace(base, task='toss_to_target', release=None, object=box, seed=seed,
-                       landing_target=np.array([*target, 0.25]))
+                       landing_target=np.array([*target, 0.25]),
+                       speeds=replace(base.speeds, toss=None))
     trajectory = run_episode(scenario, cell=cell).trajectory
     metrics = episode_metrics(scenario, trajectory, cell)
     assert metrics['release_velocity'][1] < -0.4

@@ -23,7 +23,8 @@ from dual_arm_control.evaluation.trial_summary import failure_reason, summarize,
 from dual_arm_control.evaluation.trials import main
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.randomization import Randomization
-from dual_arm_control.scenario import load_scenario, scenario_document
+from dual_arm_control.scenario import load_scenario
+from dual_arm_control.scenario_writer import scenario_document
 from dual_arm_control.trial_sampling import sample_trial
 import numpy as np
 import pytest
@@ -171,7 +172,7 @@ def test_without_randomization_only_the_seed_changes(cell):
 def test_resting_targets_follow_the_scaled_height(tmp_path, cell):
     data = toss_data(randomization={'size_scale': [1.2, 1.5]})
     data['task'] = 'toss_to_target'
-    del data['release']
+    del data['release'], data['speeds']['toss']
     data['landing_target'] = [1.0, 0.1]
     trial = sample_trial(load_scenario(write(tmp_path / 't.yaml', data), cell), 0, cell)
     height = trial.object.size[2]
@@ -183,7 +184,7 @@ def test_resting_targets_follow_the_scaled_height(tmp_path, cell):
 def test_landing_targets_are_drawn_within_their_region(tmp_path, cell):
     data = toss_data(randomization={'landing_target': [0.2, 0.3], 'mass': [0.5, 1.5]})
     data['task'] = 'toss_to_target'
-    del data['release']
+    del data['release'], data['speeds']['toss']
     data['landing_target'] = [0.95, 0.0]
     base = load_scenario(write(tmp_path / 't.yaml', data), cell)
     trials = [sample_trial(base, index, cell) for index in range(400)]

@@ -118,7 +118,8 @@ def _toss_for_target(base, target, cell):
     The scenario is base as toss_to_target with that landing target; the TossConfig is the
     release state the motion generator plans for it.
     """
-    scenario = replace(base, task='toss_to_target', release=None, landing_target=target)
+    scenario = replace(base, task='toss_to_target', release=None, landing_target=target,
+                       speeds=replace(base.speeds, toss=None))
     toss = motion_config_for_scenario(scenario, cell).toss
     direction = np.asarray(toss.release_direction)
     return (scenario, toss, math.degrees(math.asin(direction[2])),

@@ -22,7 +22,8 @@ from dual_arm_control.description.cell import load_cell
 from dual_arm_control.evaluation.trial_plots import plot_batch
 from dual_arm_control.evaluation.trial_runs import default_jobs, run_trials
 from dual_arm_control.evaluation.trial_summary import failure_reason, succeeded, summarize
-from dual_arm_control.scenario import load_scenario, scenario_document, scenario_path
+from dual_arm_control.scenario import load_scenario, scenario_path
+from dual_arm_control.scenario_writer import scenario_document
 from dual_arm_control.trial_sampling import sample_trial
 from tqdm import tqdm
 import yaml

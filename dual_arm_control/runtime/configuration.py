@@ -25,7 +25,9 @@ def motion_config_for_scenario(scenario, cell, base=None):
                                 for arm in ARMS),
         impact=replace(base.impact, impact_speed=scenario.speeds.impact),
         speed=replace(base.speed, reach_speed=scenario.speeds.reach))
-    toss = replace(base.toss, toss_speed=scenario.speeds.toss)
+    toss = base.toss
+    if scenario.speeds.toss is not None:
+        toss = replace(toss, toss_speed=scenario.speeds.toss)
     if scenario.release is not None:
         velocity = np.asarray(scenario.release.velocity, dtype=float)
         toss = replace(toss, release_position=tuple(scenario.release.position),
