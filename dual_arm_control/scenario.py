@@ -13,6 +13,7 @@ dotted key. dual_arm_control.scenario_writer writes a Scenario back as such a fi
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
+import warnings
 
 from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.conveyor import ConveyorConfig
@@ -34,6 +35,12 @@ import numpy as np
 TASKS = ('pick_and_toss', 'pick_and_place', 'pick_and_lift', 'place_toss', 'toss_to_target')
 TOSS_TASKS = ('pick_and_toss', 'toss_to_target')
 PLACE_TASKS = ('pick_and_place', 'place_toss')
+
+
+class IgnoredSettingWarning(UserWarning):
+    """A scenario setting that another one overrides (load_scenario names the file)."""
+
+
 # Largest difference [m/s] between speeds.toss and |release.velocity| taken as agreement
 # (release velocities are written to 4 decimals: the paper's [0.7603, 0, 0.3801] is 0.85002).
 TOSS_SPEED_TOLERANCE = 0.005
@@ -94,7 +101,7 @@ class Speeds:
     Task speeds [m/s]: reach (approach), impact (at contact) and toss (at release).
 
     toss may be None (left out): a scenario's release velocity sets the toss speed, and the
-    release planner chooses it for a landing target (Scenario checks that they agree).
+    release planner chooses it for a landing target (ignored_toss_speed says when it differs).
     """
 
     reach: float = SpeedProfileConfig.reach_speed
@@ -172,7 +179,6 @@ class Scenario:
             raise ConfigError('task toss_to_target needs landing_target')
         if self.release is not None and self.landing_target is not None:
             raise ConfigError('give either release or landing_target, not both')
-        self._check_toss_speed()
         if self.task in PLACE_TASKS and self.place is None:
             raise ConfigError(f'task {self.task} needs place')
         if self.release_orientation is not None:
@@ -198,22 +204,27 @@ class Scenario:
             raise ConfigError('randomization.landing_target offsets the landing_target, and '
                               'the scenario has none (task toss_to_target)')
 
-    def _check_toss_speed(self):
-        """Refuse a speeds.toss that the release velocity or the release planner would override."""
-        toss = self.speeds.toss
-        if toss is None:
-            return
-        if self.landing_target is not None:
-            raise ConfigError(
-                f'speeds.toss = {toss:g} m/s is not used with a landing_target: the release '
-                f'planner chooses the release speed; leave speeds.toss out')
-        if self.release is not None:
-            release_speed = float(np.linalg.norm(self.release.velocity))
-            if abs(toss - release_speed) > TOSS_SPEED_TOLERANCE:
-                raise ConfigError(
-                    f'speeds.toss = {toss:g} m/s disagrees with |release.velocity| = '
-                    f'{release_speed:.4g} m/s: the release velocity sets the toss speed; '
-                    f'leave speeds.toss out or make the two agree')
+
+def ignored_toss_speed(scenario):
+    """
+    Return why a Scenario's speeds.toss is ignored, or '' (left out, or it agrees).
+
+    A release's velocity sets the toss speed, and the release planner chooses it for a
+    landing_target; a speeds.toss beside them that says otherwise would be dropped unseen.
+    """
+    toss = scenario.speeds.toss
+    if toss is None:
+        return ''
+    if scenario.landing_target is not None:
+        return (f'speeds.toss = {toss:g} m/s is ignored: the release planner chooses the '
+                f'release speed for the landing_target; leave speeds.toss out')
+    if scenario.release is not None:
+        release_speed = float(np.linalg.norm(scenario.release.velocity))
+        if abs(toss - release_speed) > TOSS_SPEED_TOLERANCE:
+            return (f'speeds.toss = {toss:g} m/s is ignored: |release.velocity| = '
+                    f'{release_speed:.4g} m/s sets the toss speed; leave speeds.toss out or '
+                    f'make the two agree')
+    return ''
 
 
 def scenario_path(name_or_path):
@@ -291,7 +302,8 @@ def load_scenario(path, cell=None, catalogue_path=None):
     Load a scenario file (path or name under config/scenarios) into a Scenario.
 
     Raises ConfigError naming the file and the dotted key on a missing key, a wrong type, an
-    unknown key or object type, or a value out of range.
+    unknown key or object type, or a value out of range; warns (IgnoredSettingWarning) of a
+    speeds.toss the release velocity or the release planner overrides.
     """
     path = scenario_path(path)
     cell = cell or load_cell()
@@ -358,7 +370,7 @@ def load_scenario(path, cell=None, catalogue_path=None):
         perturbations.append(reader.build(
             context, Perturbation, time,
             reader.vector(entry, 'object_displacement', (3,), context, 'm')))
-    return reader.build(
+    scenario = reader.build(
         '', Scenario, name=name, seed=seed, task=task, object=object_config, speeds=speeds,
         duration=duration, initial_configuration=_initial_configuration(reader, data, cell),
         release=release, landing_target=landing_target, place=place,
@@ -370,3 +382,7 @@ def load_scenario(path, cell=None, catalogue_path=None):
         incoming_belt=reader.settings_block(data, 'incoming_belt', IncomingBeltConfig),
         randomization=read_randomization(reader, data, catalogue_path),
         path=path)
+    ignored = ignored_toss_speed(scenario)
+    if ignored:
+        warnings.warn(f'{path}: {ignored}', IgnoredSettingWarning, stacklevel=2)
+    return scenario

@@ -1,6 +1,7 @@
 """Scenario files: the shipped ones load, broken ones name the file and the key."""
 
 import math
+import warnings
 
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.impact import ImpactConfig
@@ -8,7 +9,8 @@ from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.speed_shaping import SpeedProfileConfig
 from dual_arm_control.description.cell import load_cell
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
-from dual_arm_control.scenario import load_scenario, ObjectConfig, Scenario, Speeds
+from dual_arm_control.scenario import (IgnoredSettingWarning, load_scenario, ObjectConfig,
+                                       Scenario, Speeds)
 from dual_arm_control.sensor_models import MocapConfig
 import numpy as np
 import pytest
@@ -161,34 +163,40 @@ def test_task_requirements(tmp_path, cell):
     assert scenario.landing_target == pytest.approx([1.0, 0.1, TABLE_TOP + 0.1])
 
 
-def test_a_toss_speed_the_release_velocity_overrides_is_refused(tmp_path, cell):
-    """speeds.toss may only repeat |release.velocity|: a differing one would be ignored."""
+def test_a_toss_speed_the_release_velocity_overrides_is_reported(tmp_path, cell):
+    """A speeds.toss that differs from |release.velocity| is ignored, and the loader says so."""
     data = good_data()
     data['speeds']['toss'] = 0.5
     path = write(tmp_path, data)
-    with pytest.raises(ConfigError) as error:
-        load_scenario(path, cell)
-    message = str(error.value)
+    with pytest.warns(IgnoredSettingWarning) as caught:
+        scenario = load_scenario(path, cell)
+    [message] = [str(item.message) for item in caught]
     assert str(path) in message and 'speeds.toss' in message and 'release.velocity' in message
-    data['speeds']['toss'] = 0.852
-    assert load_scenario(write(tmp_path, data), cell).speeds.toss == 0.852
-    del data['speeds']['toss']
-    scenario = load_scenario(write(tmp_path, data), cell)
-    assert scenario.speeds.toss is None
+    release_speed = np.linalg.norm([0.76, 0.0, 0.38])
     toss = motion_config_for_scenario(scenario, cell).toss
-    assert toss.toss_speed == pytest.approx(np.linalg.norm([0.76, 0.0, 0.38]), abs=1e-12)
+    assert toss.toss_speed == pytest.approx(release_speed, abs=1e-12)
+    for agreeing in ({'toss': 0.852}, {}):
+        data['speeds'] = {'reach': 0.85, 'impact': 0.5, **agreeing}
+        with warnings.catch_warnings():
+            warnings.simplefilter('error')
+            scenario = load_scenario(write(tmp_path, data), cell)
+        assert motion_config_for_scenario(scenario, cell).toss.toss_speed == pytest.approx(
+            release_speed, abs=1e-12)
 
 
-def test_a_toss_speed_beside_a_landing_target_is_refused(tmp_path, cell):
-    """The release planner chooses the speed for a landing target; a given one is refused."""
+def test_a_toss_speed_beside_a_landing_target_is_reported(tmp_path, cell):
+    """The release planner chooses the speed for a landing target; a given one is ignored."""
     data = good_data()
     data['task'] = 'toss_to_target'
     del data['release']
     data['landing_target'] = [1.0, 0.1]
     path = write(tmp_path, data)
-    with pytest.raises(ConfigError, match='speeds.toss .* landing_target') as error:
-        load_scenario(path, cell)
-    assert str(path) in str(error.value)
+    with pytest.warns(IgnoredSettingWarning, match='speeds.toss .* landing_target') as caught:
+        scenario = load_scenario(path, cell)
+    assert str(path) in str(caught[0].message)
+    del data['speeds']['toss']
+    planned = motion_config_for_scenario(load_scenario(write(tmp_path, data), cell), cell)
+    assert motion_config_for_scenario(scenario, cell).toss == planned.toss
 
 
 def test_unknown_scenario_name_names_the_file(cell):
