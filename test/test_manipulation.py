@@ -9,9 +9,10 @@ from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import rotation_exp, rotation_log, rpy_to_matrix
 from dual_arm_control.core.manipulation import (
     cooperative_manipulation_velocity, desired_relative_velocity, lift_velocity, LiftConfig,
-    manipulation_attractor, object_angular_velocity, object_orientation_ds, place_target,
-    place_velocity, PlaceConfig, release_rotation, release_velocity, toss_attractor,
-    toss_geometry, toss_target_fields, toss_velocity, TossConfig)
+    manipulation_attractor, object_angular_velocity, object_orientation_ds, release_rotation,
+    release_velocity, toss_attractor, toss_geometry, toss_target_fields, toss_velocity,
+    TossConfig)
+from dual_arm_control.core.place import pallet_floor, place_target, place_velocity, PlaceConfig
 from dual_arm_control.core.speed_shaping import boosted_velocity
 import numpy as np
 import pytest
@@ -263,6 +264,34 @@ def test_place_target_is_raised_far_away_and_the_place_above_it():
     np.testing.assert_allclose(place_target(place + [0.3, 0.0, 0.1], config),
                                place + [0.0, 0.0, config.approach_height])
     np.testing.assert_allclose(place_target(place + [0.01, 0.0, 0.1], config), place)
+
+
+# The cell's pallet top face (config/cell.yaml): x, y ranges and height [m].
+PALLET = (0.26, 0.56, -0.15, 0.15, 0.22)
+BOTTLE_PACK = (0.25, 0.19, 0.20)
+
+
+def test_a_box_near_the_pallet_stays_above_it_until_its_footprint_is_clear():
+    """Placed 1.5 cm beyond the pallet's edge, the box may not come down until it is that far."""
+    config = PlaceConfig(position=(0.70, -0.12, 0.25), pallet=PALLET)
+    above_the_pallet = PALLET[4] + 0.5 * BOTTLE_PACK[2] + config.pallet_clearance
+    # 2 cm short of the place its back edge (x 0.555 m) is over the pallet: held above it.
+    short = np.array([0.68, -0.12, 0.33])
+    assert place_target(short, config)[2] == pytest.approx(0.25)
+    assert place_target(short, config, object_size=BOTTLE_PACK)[2] == pytest.approx(
+        above_the_pallet)
+    assert place_velocity(short, config, COORDINATION, object_size=BOTTLE_PACK)[2] > \
+        place_velocity(short, config, COORDINATION)[2]
+    # On the place the edge is 15 mm clear (more than pallet_clearance): the place itself.
+    np.testing.assert_allclose(place_target(np.array([0.70, -0.12, 0.30]), config,
+                                            object_size=BOTTLE_PACK), config.position)
+    # Turned a quarter, the 0.19 m side faces the pallet: clear at 0.68 too.
+    turned = PlaceConfig(position=(0.70, -0.12, 0.25), pallet=PALLET, yaw_deg=90.0)
+    assert pallet_floor(short, turned, BOTTLE_PACK) == -np.inf
+    # Beside the pallet (y beyond its side) nothing is kept out; without a pallet neither.
+    assert pallet_floor(np.array([0.50, 0.40, 0.3]), config, BOTTLE_PACK) == -np.inf
+    np.testing.assert_allclose(place_target(short, PlaceConfig(position=(0.70, -0.12, 0.25)),
+                                            object_size=BOTTLE_PACK)[2], 0.25)
 
 
 @pytest.mark.parametrize('config_type, field, value', [

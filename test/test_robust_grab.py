@@ -13,8 +13,9 @@ from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import matrix_to_rpy, quat_xyzw_to_matrix, rotation_log
 from dual_arm_control.core.impact import clearance_limited_direction, ImpactConfig
-from dual_arm_control.core.manipulation import PlaceConfig, TossConfig
+from dual_arm_control.core.manipulation import TossConfig
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
+from dual_arm_control.core.place import PlaceConfig
 from dual_arm_control.core.reachability import (grasp_shifts, plan_grasp,
                                                 ReachabilityConfig)
 from dual_arm_control.core.wrench_distribution import (grip_normal_force, qp_config_for_mass,
@@ -518,3 +519,36 @@ def test_a_yawed_box_is_put_down_at_the_place_yaw(cell, place_yaw_deg):
     final_yaw = math.degrees(matrix_to_rpy(quat_xyzw_to_matrix(data['object_quat_xyzw'][-1]))[2])
     assert metrics['success']
     assert abs(final_yaw - place_yaw_deg) <= 7.0
+
+
+def test_a_box_set_down_next_to_the_pallet_clears_its_edge(cell):
+    """
+    The 6 kg bottle pack put down at the reference place (0.70, -0.12) m, 1.5 cm past the pallet.
+
+    Lowered as it neared the place, its back edge caught the pallet's front edge (x 0.56 m) and
+    it hung there, held 5 cm above the table to the end of the run (no release); now it stays
+    above the pallet until its footprint is clear of it, then comes down onto the table.
+    """
+    scenario = load_scenario('paper_place', cell=cell)
+    pack = load_catalogue()['bottle_pack']
+    box = replace(scenario.object, type='bottle_pack', size=pack.size, mass=pack.mass,
+                  friction=0.61, position=np.array([0.3834, -0.0559, 0.32]), yaw=0.0601)
+    place = np.array([0.70, -0.12, cell.surface_height(0.70, -0.12) + 0.5 * pack.size[2]])
+    near_the_pallet = replace(scenario, object=box, place=place)
+    data = run_episode(near_the_pallet, cell=cell).trajectory
+    metrics = episode_metrics(near_the_pallet, data, cell)
+    assert metrics['place_position_error'] is not None, 'the box was never let go'
+    assert metrics['place_position_error'] <= 0.02
+    assert metrics['box_tilt_at_place'] <= 5.0
+    assert data['object_position'][-1][2] == pytest.approx(place[2], abs=0.005)
+
+
+def test_a_place_too_near_the_pallet_is_refused_before_the_arms_move(cell):
+    """The paper cube's back edge would lie over the pallet's edge at x = 0.66 m: refused."""
+    scenario = load_scenario('paper_place', cell=cell)
+    place = np.array([0.66, 0.0, cell.surface_height(0.66, 0.0) + 0.1])
+    log = run_episode(replace(scenario, place=place, duration=1.0), cell=cell)
+    reasons = [reason for _, events, reason in log.events if 'unreachable' in events]
+    assert reasons and 'too near the pallet' in reasons[0], log.events
+    for arm in ('left', 'right'):
+        assert np.abs(log.trajectory[f'{arm}_dq']).max() < 0.05

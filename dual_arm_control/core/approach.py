@@ -13,9 +13,9 @@ from dual_arm_control.core.elbow_reach import elbow_clear_direction
 from dual_arm_control.core.grasp import rolled_pad_half_extents
 from dual_arm_control.core.impact import (clearance_limited_direction, impact_direction,
                                           max_impact_tilt)
-from dual_arm_control.core.manipulation import (lift_velocity, place_velocity, toss_geometry,
-                                                toss_velocity)
+from dual_arm_control.core.manipulation import lift_velocity, toss_geometry, toss_velocity
 from dual_arm_control.core.phases import Task
+from dual_arm_control.core.place import place_velocity
 import numpy as np
 
 TOSS_TASKS = (Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS)

@@ -1,5 +1,5 @@
 """
-Cooperative manipulation of the grasped object: eq. 7, toss DS (eqs. 8-9), lift and place.
+Cooperative manipulation of the grasped object: eq. 7, toss DS (eqs. 8-9) and lift.
 
 The object is a point x_o (3,) [m], world frame; the arms are stacked as x = [x_L; x_R] (6,).
 Object fields use the absolute gain of the coordination (the object moves with the absolute
@@ -17,8 +17,8 @@ from dual_arm_control.core.modulation import (
     ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
 from dual_arm_control.core.orientation import orientation_ds_angular_velocity, OrientationDsConfig
 from dual_arm_control.core.settings import check_settings, setting
-from dual_arm_control.core.speed_shaping import saturated_velocity, speed_blend_weight
-from dual_arm_control.core.validation import check_range, check_vector, finite_array
+from dual_arm_control.core.speed_shaping import saturated_velocity
+from dual_arm_control.core.validation import check_vector, finite_array
 import numpy as np
 
 ORIENTATION_MODES = ('free', 'given', 'hold', 'level')
@@ -125,45 +125,6 @@ class LiftConfig:
         check_settings(self)
 
 
-@dataclass(frozen=True)
-class PlaceConfig:
-    """Pick-and-place DS: approach the place from above, then descend and stop on it."""
-
-    position: tuple = setting(
-        (0.70, -0.12, 0.25), 'Place position of the object, world frame. Default (0.70, -0.12, '
-        '0.25) (reference placing pose).', unit='m', size=3)
-    approach_height: float = setting(
-        0.05, 'Height above the place at which the object travels. Default 0.05 (reference '
-        'height_via_point).', unit='m', low=0, high=1.0, low_open=True)
-    descent_start_distance: float = setting(
-        0.10, 'Horizontal distance to the place below which the descent begins. Default 0.10 '
-        '(reference).', unit='m', low=0, high=1.0, low_open=True)
-    descent_end_distance: float = setting(
-        0.02, 'Horizontal distance below which the target is the place itself; less than '
-        'descent_start_distance.', unit='m', low=0, high=1.0, high_open=True)
-    max_speed: float = setting(
-        0.85, 'Speed cap of the object.', unit='m/s', low=0, high=3.0, low_open=True)
-    lift_height: float = setting(
-        0.03, 'The object travels at least this far above the height it was picked up at, so '
-        "it leaves its support before crossing the support's edge (a box carried straight "
-        'toward a lower place dragged along the pallet).', unit='m', low=0, high=0.5)
-    descent_speed: float = setting(
-        0.15, "Cap of the object's downward speed: carried above its pick height, the box "
-        "drops up to 0.1 m onto the place, which the DS's rate alone took at up to 0.37 m/s.",
-        unit='m/s', low=0, high=3.0, low_open=True)
-    yaw_deg: float = setting(
-        0.0, 'Yaw of the object when put down, world frame: the carry turns it upright to this '
-        "yaw (the carried object's orientation DS), so a box picked up to 25 deg "
-        'off is placed square, where the arms also reach it best (catalogue_random_place, '
-        'seed 12, 60 trials: slip p95 1.1 cm against 2.6 cm left free).',
-        unit='deg', low=-180.0, high=180.0)
-
-    def __post_init__(self):
-        check_settings(self)
-        check_range('descent_end_distance', self.descent_end_distance, 0.0,
-                    self.descent_start_distance, 'm', high_open=True)
-
-
 class TossGeometry(NamedTuple):
     """Constant data of the toss DS, built by toss_geometry."""
 
@@ -210,11 +171,6 @@ def toss_geometry(config, coordination):
 def release_rotation(config):
     """Return the desired object orientation at release R (3, 3) of a TossConfig, world frame."""
     return rpy_to_matrix(np.radians(np.asarray(config.release_rpy_deg, dtype=float)))
-
-
-def place_rotation(config):
-    """Return the object's orientation R (3, 3) at a PlaceConfig's place: upright, at yaw_deg."""
-    return rpy_to_matrix((0.0, 0.0, np.radians(config.yaw_deg)))
 
 
 def level_rotation(R_world_object):
@@ -341,38 +297,4 @@ def lift_velocity(x_object, config, coordination):
     """Return the object velocity (3,) [m/s] toward the lift position, capped at max_speed."""
     x_object = finite_array('x_object', x_object, (3,))
     velocity = -coordination.absolute_gain * (x_object - np.asarray(config.position))
-    return saturated_velocity(velocity, config.max_speed)
-
-
-def place_target(x_object, config, pick_height=None):
-    """
-    Return the moving target (3,) [m] of the place DS.
-
-    The place position raised by w times the travel height, w = 1 beyond
-    descent_start_distance (horizontal) and 0 inside descent_end_distance (smoothstep between):
-    the object travels high, then descends onto the place once above it. The travel height is
-    approach_height above the place, and at least lift_height above pick_height [m] (world z
-    of the object where it was picked up), when given.
-    """
-    place = np.asarray(config.position, dtype=float)
-    travel = config.approach_height
-    if pick_height is not None:
-        travel = max(travel, pick_height + config.lift_height - place[2])
-    horizontal = np.hypot(x_object[0] - place[0], x_object[1] - place[1])
-    weight = speed_blend_weight(horizontal, config.descent_end_distance,
-                                config.descent_start_distance)
-    return place + np.array([0.0, 0.0, travel * weight])
-
-
-def place_velocity(x_object, config, coordination, pick_height=None):
-    """
-    Return the object velocity (3,) [m/s] of the pick-and-place DS, capped at max_speed.
-
-    -k_abs (x^o - place_target(x^o)): linear near the place, so the object slows to zero on it;
-    its downward component no faster than descent_speed.
-    """
-    x_object = finite_array('x_object', x_object, (3,))
-    velocity = -coordination.absolute_gain * (x_object - place_target(x_object, config,
-                                                                      pick_height))
-    velocity[2] = max(velocity[2], -config.descent_speed)
     return saturated_velocity(velocity, config.max_speed)

@@ -11,11 +11,12 @@ from dual_arm_control.core.contact import ContactConfig, FtCompensationConfig
 from dual_arm_control.core.cooperative import CoordinationConfig
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.impact import ArrivalSchedule, ImpactConfig
-from dual_arm_control.core.manipulation import LiftConfig, PlaceConfig, TossConfig
+from dual_arm_control.core.manipulation import LiftConfig, TossConfig
 from dual_arm_control.core.moving_grab import MovingGrabConfig
 from dual_arm_control.core.moving_target import ConveyorTossConfig
 from dual_arm_control.core.orientation import OrientationDsConfig
 from dual_arm_control.core.phases import PhaseConfig, Task, task_from_name, TASK_NAMES
+from dual_arm_control.core.place import PlaceConfig
 from dual_arm_control.core.reachability import ReachabilityConfig
 from dual_arm_control.core.resting_object import RestingObjectConfig
 from dual_arm_control.core.settings import check_settings, setting

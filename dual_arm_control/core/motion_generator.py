@@ -25,8 +25,7 @@ from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
                                                 desired_relative_velocity, level_rotation,
                                                 lift_velocity, object_angular_velocity,
-                                                object_orientation_ds, place_rotation,
-                                                place_velocity, release_rotation,
+                                                object_orientation_ds, release_rotation,
                                                 release_velocity, toss_geometry, toss_velocity)
 from dual_arm_control.core.motion_signals import ArmCommand, DeferredMapping, MotionOutput
 from dual_arm_control.core.moving_grab import (belt_feed_forward, decayed_belt_velocity,
@@ -35,6 +34,7 @@ from dual_arm_control.core.orientation import (
     intermediate_target_orientation, orientation_coupling, orientation_ds_angular_velocity)
 from dual_arm_control.core.phases import (Phase, PhaseInputs, PhaseMachine, PhaseMachineOutput,
                                           Task)
+from dual_arm_control.core.place import place_rotation, place_velocity
 from dual_arm_control.core.release import clear_of_the_box
 from dual_arm_control.core.resting_object import RestingObjectFilter
 from dual_arm_control.core.speed_shaping import (
@@ -258,7 +258,7 @@ class DualArmMotionGenerator:
             return velocity
         if config.task is Task.PICK_AND_PLACE:
             velocity = place_velocity(p_object, config.place, config.coordination,
-                                      self._pick_height)
+                                      self._pick_height, config.object_size)
         else:
             velocity = lift_velocity(p_object, config.lift, config.coordination)
         return saturated_velocity(velocity, speed)

@@ -65,6 +65,13 @@ class Block:
         """World z of the top face [m]."""
         return float(self.center[2] + 0.5 * self.size[2])
 
+    def top_face(self):
+        """Return (x_min, x_max, y_min, y_max, top height) [m] of the top face."""
+        half = 0.5 * self.size
+        return (float(self.center[0] - half[0]), float(self.center[0] + half[0]),
+                float(self.center[1] - half[1]), float(self.center[1] + half[1]),
+                self.top_height)
+
     def covers(self, x, y):
         """Return True if the world point (x, y) [m] lies over the block's top face."""
         half = 0.5 * self.size

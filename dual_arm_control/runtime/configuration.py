@@ -24,7 +24,8 @@ def motion_config_for_scenario(scenario, cell, base=None):
         standby_rotations=tuple(tuple(map(tuple, cell.arm(arm).R_world_standby))
                                 for arm in ARMS),
         impact=replace(base.impact, impact_speed=scenario.speeds.impact),
-        speed=replace(base.speed, reach_speed=scenario.speeds.reach))
+        speed=replace(base.speed, reach_speed=scenario.speeds.reach),
+        place=replace(base.place, pallet=cell.pallet.top_face()))
     toss = base.toss
     if scenario.speeds.toss is not None:
         toss = replace(toss, toss_speed=scenario.speeds.toss)
@@ -47,7 +48,7 @@ def motion_config_for_scenario(scenario, cell, base=None):
                 scenario.conveyor.rim_height + 0.5 * scenario.object.size[2])))
     if scenario.place is not None:
         pressed = np.asarray(scenario.place, dtype=float) - [0.0, 0.0, PLACE_PRESS_DEPTH]
-        config = replace(config, place=replace(base.place, position=tuple(pressed)))
+        config = replace(config, place=replace(config.place, position=tuple(pressed)))
     return config
 
 

@@ -35,16 +35,17 @@ the living arm against the arm the robot holds) and the tick's phase carries the
 """
 
 from dataclasses import dataclass
+import math
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import UnreachableTargetError
 from dual_arm_control.core.exceptions import InputError
-from dual_arm_control.core.manipulation import place_rotation
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
 from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement, ObjectMeasurement
 from dual_arm_control.core.moving_grab import grab_wait_reason, predicted_box_position
 from dual_arm_control.core.phases import Phase, Task
-from dual_arm_control.core.reachability import plan_grasp
+from dual_arm_control.core.place import pallet_floor, place_rotation
+from dual_arm_control.core.reachability import GraspPlan, plan_grasp
 from dual_arm_control.runtime.configuration import config_for_landing_target
 from dual_arm_control.runtime.controller_watch import ControllerWatch
 from dual_arm_control.runtime.conveyor_aim import container_aim
@@ -322,12 +323,20 @@ class MotionGeneratorStep:
         """
         Plan the grasp of the box at (position, rotation); a reachable one is the grasp.
 
-        A box to be set down is grasped where the arms also reach the place.
+        A box to be set down is grasped where the arms also reach the place; a place where it
+        would come within place.pallet_clearance of the pallet (core.place.pallet_floor) is
+        refused, as the box could not come down there.
         """
         config = self._generator.config
         place = None
         if config.task is Task.PICK_AND_PLACE:
             place = (np.asarray(config.place.position, dtype=float), place_rotation(config.place))
+            if pallet_floor(place[0], config.place, config.object_size) > -math.inf:
+                self.grasp_plan = GraspPlan(np.zeros(3), False, (
+                    f'place {np.round(place[0][:2], 3).tolist()} m too near the pallet: the box '
+                    f'would come within {1000.0 * config.place.pallet_clearance:.0f} mm of it '
+                    f'and could not be set down'), {})
+                return self.grasp_plan
         self.grasp_plan = plan_grasp(
             self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
             np.asarray(config.object_size), config.reachability,
