@@ -267,14 +267,14 @@ def test_place_target_is_raised_far_away_and_the_place_above_it():
 
 
 # The cell's pallet top face (config/cell.yaml): x, y ranges and height [m].
-PALLET = (0.26, 0.56, -0.15, 0.15, 0.22)
+PALLET = ((0.26, 0.56), (-0.15, 0.15), 0.22)
 BOTTLE_PACK = (0.25, 0.19, 0.20)
 
 
 def test_a_box_near_the_pallet_stays_above_it_until_its_footprint_is_clear():
     """Placed 1.5 cm beyond the pallet's edge, the box may not come down until it is that far."""
     config = PlaceConfig(position=(0.70, -0.12, 0.25), pallet=PALLET)
-    above_the_pallet = PALLET[4] + 0.5 * BOTTLE_PACK[2] + config.pallet_clearance
+    above_the_pallet = PALLET[2] + 0.5 * BOTTLE_PACK[2] + config.pallet_clearance
     # 2 cm short of the place its back edge (x 0.555 m) is over the pallet: held above it.
     short = np.array([0.68, -0.12, 0.33])
     assert place_target(short, config)[2] == pytest.approx(0.25)

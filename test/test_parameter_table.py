@@ -5,7 +5,9 @@ import math
 
 from conftest import SOURCE_ROOT
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.settings import Setting
+from dual_arm_control.description.cell import load_cell
 from dual_arm_control.graph import GRAPHS
 from dual_arm_control.nodes.ds_motion_generator import DsMotionGenerator
 from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
@@ -16,7 +18,9 @@ from dual_arm_control.parameter_files import (BUILT_IN_PARAMETERS, key_applies,
                                               parameter_reference)
 from dual_arm_control.resources import load_yaml
 from dual_arm_control.runtime.config_tree import config_leaves, config_with_values
+from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.runtime.node_settings import node_table, NODE_TABLES
+from dual_arm_control.scenario import load_scenario
 from graph_helpers import GraphProbe
 import pytest
 from rclpy.parameter import Parameter
@@ -149,3 +153,13 @@ def test_a_tunable_field_without_a_setting_is_refused():
 
     with pytest.raises(TypeError, match='BareConfig.gain'):
         config_leaves(BareConfig())
+
+
+@pytest.mark.parametrize('scenario_name', ['paper_toss', 'paper_place', 'conveyor_toss'])
+def test_a_scenario_config_is_the_motion_generators_parameters(scenario_name):
+    """The cell facts a scenario adds (standby poses, the pallet) are not parameters."""
+    cell = load_cell()
+    config = motion_config_for_scenario(load_scenario(scenario_name, cell=cell), cell)
+    names = {leaf.name for leaf in config_leaves(config)}
+    assert names == {leaf.name for leaf in config_leaves(MotionGeneratorConfig())}
+    assert config.place.pallet == cell.pallet.top_face()

@@ -20,8 +20,9 @@ class PlaceConfig:
     """
     Pick-and-place DS: approach the place from above, then descend and stop on it.
 
-    pallet: (x_min, x_max, y_min, y_max, top height) [m] of the pallet's top face, set from the
-    cell (not tunable; empty: none), which the carried box clears by pallet_clearance.
+    pallet: ((x_min, x_max), (y_min, y_max), top height) [m] of the pallet's top face, set from
+    the cell (not tunable, like the standby poses; empty: none), which the carried box clears
+    by pallet_clearance.
     """
 
     position: tuple = setting(
@@ -102,7 +103,7 @@ def pallet_floor(x_object, config, object_size):
     closer to the pallet (config.pallet) than pallet_clearance keeps its bottom that far above
     the pallet's top.
     """
-    x_min, x_max, y_min, y_max, top = config.pallet
+    (x_min, x_max), (y_min, y_max), top = config.pallet
     yaw = math.radians(config.yaw_deg)
     cos, sin = abs(math.cos(yaw)), abs(math.sin(yaw))
     reach_x = 0.5 * (cos * object_size[0] + sin * object_size[1]) + config.pallet_clearance

@@ -66,10 +66,10 @@ class Block:
         return float(self.center[2] + 0.5 * self.size[2])
 
     def top_face(self):
-        """Return (x_min, x_max, y_min, y_max, top height) [m] of the top face."""
+        """Return ((x_min, x_max), (y_min, y_max), top height) [m] of the top face."""
         half = 0.5 * self.size
-        return (float(self.center[0] - half[0]), float(self.center[0] + half[0]),
-                float(self.center[1] - half[1]), float(self.center[1] + half[1]),
+        return ((float(self.center[0] - half[0]), float(self.center[0] + half[0])),
+                (float(self.center[1] - half[1]), float(self.center[1] + half[1])),
                 self.top_height)
 
     def covers(self, x, y):
