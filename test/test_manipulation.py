@@ -14,6 +14,7 @@ from dual_arm_control.core.manipulation import (
     TossConfig)
 from dual_arm_control.core.place import pallet_floor, place_target, place_velocity, PlaceConfig
 from dual_arm_control.core.speed_shaping import boosted_velocity
+from dual_arm_control.description.cell import load_cell
 import numpy as np
 import pytest
 
@@ -266,8 +267,8 @@ def test_place_target_is_raised_far_away_and_the_place_above_it():
     np.testing.assert_allclose(place_target(place + [0.01, 0.0, 0.1], config), place)
 
 
-# The cell's pallet top face (config/cell.yaml): x, y ranges and height [m].
-PALLET = ((0.26, 0.56), (-0.15, 0.15), 0.22)
+# The cell's pallet top face: x range (front edge at 0.56 m), y range and height [m].
+PALLET = load_cell().pallet.top_face()
 BOTTLE_PACK = (0.25, 0.19, 0.20)
 
 

@@ -35,7 +35,6 @@ the living arm against the arm the robot holds) and the tick's phase carries the
 """
 
 from dataclasses import dataclass
-import math
 
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import UnreachableTargetError
@@ -331,7 +330,7 @@ class MotionGeneratorStep:
         place = None
         if config.task is Task.PICK_AND_PLACE:
             place = (np.asarray(config.place.position, dtype=float), place_rotation(config.place))
-            if pallet_floor(place[0], config.place, config.object_size) > -math.inf:
+            if pallet_floor(place[0], config.place, config.object_size) > -np.inf:
                 self.grasp_plan = GraspPlan(np.zeros(3), False, (
                     f'place {np.round(place[0][:2], 3).tolist()} m too near the pallet: the box '
                     f'would come within {1000.0 * config.place.pallet_clearance:.0f} mm of it '
