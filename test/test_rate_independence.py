@@ -20,8 +20,12 @@ START = 0.3
 DURATION = 1.8
 
 
-def reach(ds_period):
-    """Return ({arm: (n, 3) tool path}, (n,) times, [(time, phase)]) of one reach."""
+def reach(ds_period, outputs=None):
+    """
+    Return ({arm: (n, 3) tool path}, (n,) times, [(time, phase)]) of one reach.
+
+    outputs, a list, receives every tick's MotionOutput.
+    """
     cell = load_cell()
     scenario = load_scenario(scenario_path('paper_toss'), cell=cell)
     generator = DualArmMotionGenerator(motion_config_for_scenario(scenario, cell))
@@ -38,6 +42,8 @@ def reach(ds_period):
         output = generator.step(arms, obj, ds_period,
                                 start_episode=tick == int(round(START / ds_period)))
         phases.append((t, output.phase.phase.value))
+        if outputs is not None:
+            outputs.append(output)
         for step in range(substeps):
             for arm in ARMS:
                 command = output.commands[arm]
@@ -66,6 +72,18 @@ def test_reach_path_and_timing_agree_at_200_and_500_hz():
         time_gap = np.max(np.linalg.norm(slow_paths[arm][slow_index]
                                          - fast_paths[arm][fast_index], axis=1))
         assert time_gap <= 0.0025, f'{arm}: {time_gap * 1e3:.2f} mm apart at equal times'
+
+
+def test_the_object_ds_asks_for_motion_only_once_the_reach_has_begun():
+    """Standby: zero desired object velocity; reach: the toss field the impact directions use."""
+    outputs = []
+    reach(0.005, outputs)
+    standby = [o.object_velocity for o in outputs if o.phase.phase.value == 'standby']
+    reaching = [o.object_velocity for o in outputs if o.phase.phase.value == 'reach']
+    assert len(standby) >= 50 and len(reaching) >= 50
+    assert np.all(np.array(standby) == 0.0)
+    speeds = np.linalg.norm(reaching, axis=1)
+    assert np.all(speeds > 0.1), f'reach object speeds down to {speeds.min():.3f} m/s'
 
 
 def test_tick_schedule_keeps_its_rate_on_the_fri_grid_and_restarts_after_a_reset():

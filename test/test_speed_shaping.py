@@ -67,6 +67,17 @@ def test_saturated_velocity_caps_only_fast_points():
     np.testing.assert_array_equal(saturated_velocity(np.zeros(3), 1.0), np.zeros(3))
 
 
+def test_a_single_point_saturates_as_a_row_of_the_array_form():
+    rng = np.random.default_rng(5)
+    points = rng.normal(size=(2000, 3)) * 10.0 ** rng.uniform(-9, 2, size=(2000, 1))
+    limits = 10.0 ** rng.uniform(-2, 1, size=2000)
+    for point, limit in zip(points, limits):
+        np.testing.assert_array_equal(saturated_velocity(point, limit),
+                                      saturated_velocity(point[None], limit)[0])
+    with np.errstate(invalid='ignore'):
+        assert np.all(np.isnan(saturated_velocity(np.array([np.nan, 0.0, 0.0]), 1.0)))
+
+
 def test_speed_filter_response_does_not_depend_on_the_step():
     results = []
     for dt in (0.001, 0.005):

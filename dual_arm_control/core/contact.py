@@ -117,11 +117,11 @@ def contact_geometry(p_world_tool, R_world_tool, p_world_grasp, n_world_grasp, c
         raise InputError('n_world_grasp has no direction')
     p_world_offset = p_world_grasp - p_world_tool
     normal_gap = float(p_world_offset @ n_world_grasp / norm)
-    tangential_offset = (R_world_tool.T @ p_world_offset)[:2]
-    half_pad = 0.5 * np.asarray(config.pad_size) + config.tangential_margin
-    within_reach = bool(abs(normal_gap) <= config.contact_distance
-                        and np.all(np.abs(tangential_offset) <= half_pad))
-    return ContactGeometry(normal_gap, tuple(tangential_offset.tolist()), within_reach)
+    tangential_offset = tuple((R_world_tool.T @ p_world_offset)[:2].tolist())
+    within_reach = abs(normal_gap) <= config.contact_distance and all(
+        abs(offset) <= 0.5 * size + config.tangential_margin
+        for offset, size in zip(tangential_offset, config.pad_size))
+    return ContactGeometry(normal_gap, tangential_offset, within_reach)
 
 
 @dataclass(frozen=True)

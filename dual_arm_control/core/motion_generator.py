@@ -53,7 +53,8 @@ class DualArmMotionGenerator:
         self._contact = {arm: ContactDetector(config.contact) for arm in ARMS}
         self._reach_speed = SpeedFilter(config.speed.time_constant)
         self._object_speed = SpeedFilter(config.toss_speed_time_constant)
-        self._toss_feedback = _toss_feedback(config.toss)
+        self._toss_feedback = SpeedErrorIntegrator(config.toss.speed_integral_gain,
+                                                   config.toss.speed_correction_limit)
         self._held_object = HeldObjectEstimate()
         self._resting_object = RestingObjectFilter()
         self._release_object_velocity = self._toss_velocity = np.zeros(3)
@@ -229,7 +230,8 @@ class DualArmMotionGenerator:
         After contact the object's speed rises from the impact speed to the task speed with
         toss_speed_time_constant: the toss field is boosted to that speed (and corrected by the
         outer loop on the carried object's velocity error), the place and lift fields (which
-        slow down near their targets) are capped by it.
+        slow down near their targets) are capped by it. Zero outside the reach (whose impact
+        directions follow it) and the carry: no object motion is asked for then.
         """
         config = self._config
         task_speed = (config.toss.toss_speed if config.task in TOSS_TASKS
@@ -247,6 +249,8 @@ class DualArmMotionGenerator:
             self._toss_feedback.reset()
             speed = self._object_speed.speed
             self._pick_height = float(p_object[2])
+            if phase is not Phase.REACH:
+                return np.zeros(3)
         if config.task in TOSS_TASKS:
             velocity = boosted_velocity(toss_velocity(p_object, self._toss_geometry).velocity,
                                         speed)
@@ -393,8 +397,3 @@ class DualArmMotionGenerator:
                 orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
                 R_target, target)
         return commands
-
-
-def _toss_feedback(toss):
-    """Return the SpeedErrorIntegrator of a TossConfig."""
-    return SpeedErrorIntegrator(toss.speed_integral_gain, toss.speed_correction_limit)

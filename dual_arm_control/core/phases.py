@@ -19,7 +19,7 @@ from dual_arm_control.core.contact import ContactState
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.release import PlaceRelease, TossRelease
 from dual_arm_control.core.settings import check_settings, setting
-from dual_arm_control.core.validation import finite_array
+from dual_arm_control.core.validation import finite_rows
 import numpy as np
 
 
@@ -152,10 +152,9 @@ class PhaseInputs:
     reset: bool = False
 
     def __post_init__(self):
-        for name in _VECTOR_FIELDS:
-            array = finite_array(name, getattr(self, name), (3,)).copy()
-            array.flags.writeable = False
-            object.__setattr__(self, name, array)
+        rows = finite_rows(_VECTOR_FIELDS, [getattr(self, name) for name in _VECTOR_FIELDS], 3)
+        for name, row in zip(_VECTOR_FIELDS, rows):
+            object.__setattr__(self, name, row)
         for name in ('contact_left', 'contact_right'):
             if not isinstance(getattr(self, name), ContactState):
                 raise InputError(f'{name} must be a ContactState, got '

@@ -110,8 +110,17 @@ def arm_velocities_near_object(velocity, speed, distance, config):
 
 
 def saturated_velocity(velocity, max_speed):
-    """Return velocity (..., 3) rescaled per point to at most max_speed [m/s]."""
+    """
+    Return velocity (..., 3) rescaled per point to at most max_speed [m/s].
+
+    A single point is scaled in Python floats: the same operations as the array form (summed
+    squares in order, correctly rounded square root) without NumPy's dispatch.
+    """
     velocity = np.asarray(velocity, dtype=float)
+    if velocity.shape == (3,):
+        x, y, z = velocity.tolist()
+        norm = math.sqrt(x * x + y * y + z * z)
+        return velocity * min(max_speed / max(norm, _MIN_SPEED), 1.0)
     norm = last_axis_norms(velocity)
     return velocity * np.minimum(1.0, max_speed / np.maximum(norm, _MIN_SPEED))
 

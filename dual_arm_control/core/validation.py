@@ -5,6 +5,9 @@ import math
 from dual_arm_control.core.exceptions import ConfigError, InputError
 import numpy as np
 
+# Largest array whose finiteness is summed in Python floats rather than by a dot product [-].
+SMALL_ARRAY_SIZE = 64
+
 
 def check_range(name, value, low=-math.inf, high=math.inf, unit='', low_open=False,
                 high_open=False):
@@ -55,11 +58,17 @@ def all_finite(array):
     """
     Return True if every entry of a float array is finite.
 
-    A finite sum of squares is the fast proof (NaN and Inf propagate); only an overflowing
-    sum of finite values needs the element-wise check.
+    A finite sum is the fast proof (NaN and Inf propagate): of Python floats for the small
+    arrays of a tick (no NumPy dispatch), of squares by a dot product for large ones. Only an
+    overflowing sum of finite values needs the element-wise check.
     """
     flat = array.ravel()
-    return math.isfinite(flat.dot(flat)) or bool(np.isfinite(array).all())
+    if flat.size <= SMALL_ARRAY_SIZE:
+        total = sum(flat.tolist())
+    else:
+        with np.errstate(over='ignore'):
+            total = flat.dot(flat)
+    return math.isfinite(total) or bool(np.isfinite(array).all())
 
 
 def finite_array(name, value, shape=None):
@@ -70,3 +79,22 @@ def finite_array(name, value, shape=None):
     if not all_finite(array):
         raise InputError(f'{name} contains NaN or Inf')
     return array
+
+
+def finite_rows(names, values, size):
+    """
+    Return values as a read-only (len(names), size) float array, a row per name.
+
+    One conversion and one finiteness check for all rows; a bad row raises finite_array's
+    InputError, which names it.
+    """
+    try:
+        rows = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        rows = None
+    if rows is None or rows.shape != (len(names), size) or not all_finite(rows):
+        for name, value in zip(names, values):
+            finite_array(name, value, (size,))
+        rows = np.array(values, dtype=float)
+    rows.flags.writeable = False
+    return rows
