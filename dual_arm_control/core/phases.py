@@ -85,9 +85,10 @@ class PhaseConfig:
         'place_speed (the place target lies 4 mm below the resting pose: at 0.012 m boxes were '
         'let go up to 6 mm above the table).', unit='m', low=0, low_open=True)
     place_speed: float = setting(
-        0.05, 'Place release when ||v_o|| < this (and within place_tolerance): half the 0.1 m/s '
-        'a set-down may have (at 0.1 the speeds at release piled up at 0.097-0.100 m/s).',
-        unit='m/s', low=0, low_open=True)
+        0.015, 'Place release when ||v_o|| < this (and within place_tolerance): the table has '
+        'stopped the box (at 0.05 boxes still descending 3 mm above it were let go and fell, '
+        '0.07 m/s median as the pads left them, up to 0.102; at 0.1 the speeds piled up at '
+        '0.097-0.100 m/s).', unit='m/s', low=0, low_open=True)
     place_stall_distance: float = setting(
         0.05, 'A box this near the place horizontally and within place_stall_height of its '
         'height, slower than place_stall_speed for place_stall_time, is let go where it is '
