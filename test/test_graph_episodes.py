@@ -44,7 +44,9 @@ def test_paper_place(tmp_path, ros_domain):
     assert m, output + _logs(out)
     print(json.dumps(m, indent=1))
     assert m['place_position_error'] <= 0.03
-    assert m['place_speed'] < 0.1
+    # Let go once the table has stopped the box: 0.027 m/s as the pads leave it (0.076 when
+    # it was let go still descending, 3 mm above the table; limit of the task 0.1).
+    assert m['place_speed'] < 0.05
     assert m['success'] and code == 0
 
 
