@@ -157,3 +157,14 @@ def slerp_rotation(rotation_start, rotation_end, fraction):
     """Return the geodesic interpolation between two rotation matrices, fraction in [0, 1]."""
     delta = rotation_log(np.asarray(rotation_start).T @ rotation_end)
     return rotation_start @ rotation_exp(fraction * delta)
+
+
+def turned_rectangle_half_extents(angle, half_x, half_y):
+    """
+    Return the half extents (along x, along y) of a rectangle turned by angle [rad] in its plane.
+
+    The rectangle spans half_x along its own x and half_y along its own y; turned, its bounding
+    rectangle is |cos| half_x + |sin| half_y along x and |sin| half_x + |cos| half_y along y.
+    """
+    cosine, sine = abs(math.cos(angle)), abs(math.sin(angle))
+    return (cosine * half_x + sine * half_y, sine * half_x + cosine * half_y)

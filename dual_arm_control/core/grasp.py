@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import functools
 import math
 
-from dual_arm_control.core.geometry import cross3
+from dual_arm_control.core.geometry import cross3, turned_rectangle_half_extents
 import numpy as np
 
 _FACE_SIGN = {'left': 1.0, 'right': -1.0}
@@ -65,8 +65,7 @@ def rolled_pad_half_extents(roll, half_length, half_width):
     grasp x (the object x axis) and |sin| half_length + |cos| half_width along grasp y (the
     object z axis, across the impact plane).
     """
-    cosine, sine = abs(math.cos(roll)), abs(math.sin(roll))
-    return (cosine * half_length + sine * half_width, sine * half_length + cosine * half_width)
+    return turned_rectangle_half_extents(roll, half_length, half_width)
 
 
 def grasp_frame(arm, p_world_object, R_world_object, size, offset=(0.0, 0.0, 0.0), roll=0.0):

@@ -8,7 +8,7 @@ box keeps clear of the pallet it was picked from while it comes down near it.
 from dataclasses import dataclass
 import math
 
-from dual_arm_control.core.geometry import rpy_to_matrix
+from dual_arm_control.core.geometry import rpy_to_matrix, turned_rectangle_half_extents
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import saturated_velocity, speed_blend_weight
 from dual_arm_control.core.validation import check_range, finite_array
@@ -104,10 +104,10 @@ def pallet_floor(x_object, config, object_size):
     the pallet's top.
     """
     (x_min, x_max), (y_min, y_max), top = config.pallet
-    yaw = math.radians(config.yaw_deg)
-    cos, sin = abs(math.cos(yaw)), abs(math.sin(yaw))
-    reach_x = 0.5 * (cos * object_size[0] + sin * object_size[1]) + config.pallet_clearance
-    reach_y = 0.5 * (sin * object_size[0] + cos * object_size[1]) + config.pallet_clearance
+    half_x, half_y = turned_rectangle_half_extents(
+        math.radians(config.yaw_deg), 0.5 * object_size[0], 0.5 * object_size[1])
+    reach_x = half_x + config.pallet_clearance
+    reach_y = half_y + config.pallet_clearance
     if (x_object[0] + reach_x <= x_min or x_object[0] - reach_x >= x_max
             or x_object[1] + reach_y <= y_min or x_object[1] - reach_y >= y_max):
         return -math.inf

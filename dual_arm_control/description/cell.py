@@ -74,8 +74,8 @@ class Block:
 
     def covers(self, x, y):
         """Return True if the world point (x, y) [m] lies over the block's top face."""
-        half = 0.5 * self.size
-        return bool(abs(x - self.center[0]) <= half[0] and abs(y - self.center[1]) <= half[1])
+        (x_min, x_max), (y_min, y_max), _ = self.top_face()
+        return bool(x_min <= x <= x_max and y_min <= y <= y_max)
 
 
 @dataclass(frozen=True)
