@@ -4,6 +4,7 @@ import dataclasses
 import math
 
 from conftest import SOURCE_ROOT
+from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.settings import Setting
@@ -22,6 +23,7 @@ from dual_arm_control.runtime.configuration import motion_config_for_scenario
 from dual_arm_control.runtime.node_settings import node_table, NODE_TABLES
 from dual_arm_control.scenario import load_scenario
 from graph_helpers import GraphProbe
+import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from sim_bridge.bridge_node import SimBridge
@@ -163,3 +165,21 @@ def test_a_scenario_config_is_the_motion_generators_parameters(scenario_name):
     names = {leaf.name for leaf in config_leaves(config)}
     assert names == {leaf.name for leaf in config_leaves(MotionGeneratorConfig())}
     assert config.place.pallet == cell.pallet.top_face()
+
+
+def test_a_motion_generator_without_a_scenario_has_the_cells_pallet_and_standby_poses(
+        ros_domain):
+    """Started without a scenario (ros2 run), the node still keeps boxes clear of the pallet."""
+    cell = load_cell()
+    assert MotionGeneratorConfig().place.pallet == ()
+    probe = GraphProbe(ros_domain)
+    try:
+        node = DsMotionGenerator(context=probe.context)
+        config = node.step.config
+        node.destroy_node()
+    finally:
+        probe.close()
+    assert config.place.pallet == cell.pallet.top_face()
+    for arm, position, rotation in zip(ARMS, config.standby_positions, config.standby_rotations):
+        np.testing.assert_array_equal(position, cell.arm(arm).standby_position)
+        np.testing.assert_array_equal(rotation, cell.arm(arm).R_world_standby)

@@ -221,6 +221,42 @@ def test_controller_returns_to_the_free_gains_after_a_stretch_without_contact(co
     assert touched == expected and not touched[-1]
 
 
+def test_a_parameter_change_keeps_the_tracked_posture_and_changes_only_that_gain():
+    """
+    Reconfiguring mid-task keeps the null-space posture the arm has tracked so far.
+
+    Two controllers see the same 100 cycles toward an attractor 0.2 m from the home tool
+    position (their postures move up to 0.01 rad a cycle); one is then given an equal config.
+    Rebuilt from its start posture instead, its null-space spring would pull every joint up to
+    the 0.4 rad error limit back toward home: tens of N m at 10 N m/rad.
+    """
+    model = arm_model('left', CELL)
+    q_home, dq = CELL.arm('left').q_home, np.zeros(7)
+    steps = [ControllerStep(model, q_home, PassiveControllerConfig(), 0.005, 0.05)
+             for _ in range(2)]
+    p_world_home, _ = model.tool_pose(q_home)
+    attractor = p_world_home + np.array([0.2, 0.0, -0.1])
+
+    def cycle_all(stamp_ns):
+        for step in steps:
+            step.command(arm_command_sample(stamp_ns, attractor, [1.0, 0.0, 0.0, 0.0],
+                                            np.zeros(3), np.zeros(3)))
+            step.wrench(wrench_sample(stamp_ns, np.zeros(3), np.zeros(3)))
+        return [step.cycle(joint_state(stamp_ns, q_home, dq)).effort for step in steps]
+
+    for k in range(1, 101):
+        cycle_all(2 * k * MS)
+    tracked = steps[1].controller.q_null.copy()
+    assert np.abs(tracked - q_home).max() > 0.1, 'the posture followed the attractor'
+    steps[1].reconfigure(PassiveControllerConfig())
+    unchanged, reconfigured = cycle_all(202 * MS)
+    np.testing.assert_array_equal(reconfigured, unchanged)
+    steps[1].reconfigure(PassiveControllerConfig(null_space_stiffness=(20.0,) * 7))
+    unchanged, stiffer = cycle_all(204 * MS)
+    assert np.abs(steps[1].controller.q_null - steps[0].controller.q_null).max() == 0.0
+    assert not np.array_equal(stiffer, unchanged), 'the new gain acts'
+
+
 def test_controller_waits_for_tick_inputs_only_on_new_ticks(controller):
     q, dq = CELL.arm('left').q_home, np.zeros(7)
     assert controller.needs_tick_inputs(0)

@@ -268,19 +268,29 @@ class PassiveController:
     def __init__(self, model, q_null, config=None):
         """Bind the arm model; read its torque limits once."""
         self.model = model
-        self.config = PassiveControllerConfig() if config is None else config
         self._torque_limits = np.asarray(model.torque_limits, dtype=float).copy()
-        self._null_stiffness = np.array(self.config.null_space_stiffness)
-        self._null_damping = float(self.config.null_space_damping)
-        self._hold_damping = np.array(self.config.hold_damping)
         self._velocity_limits = np.asarray(model.velocity_limits, dtype=float).copy()
         self._armature = np.asarray(model.armature, dtype=float).copy()
         self._position_limits = model.position_limits
-        self._regulariser = self.config.projector_damping ** 2 * np.eye(6)
+        self.reconfigure(PassiveControllerConfig() if config is None else config)
         self.q_null = None
         self.set_null_space_posture(q_null)
         self.last_gravity_torque = np.zeros(JOINTS)
         self.touched = False
+
+    def reconfigure(self, config):
+        """
+        Use config's gains from the next call on, keeping the controller's state.
+
+        The tracked null-space posture, the last gravity torque and whether the arm has touched
+        stay: a gain tuned live while the arms hold a box changes that gain only, and does not
+        pull the arm back toward the posture it started the episode in.
+        """
+        self.config = config
+        self._null_stiffness = np.array(config.null_space_stiffness)
+        self._null_damping = float(config.null_space_damping)
+        self._hold_damping = np.array(config.hold_damping)
+        self._regulariser = config.projector_damping ** 2 * np.eye(6)
 
     def start_episode(self):
         """Return to the free-motion gains without elbow lift until the next contact wrench."""

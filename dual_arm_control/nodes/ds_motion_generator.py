@@ -22,7 +22,6 @@ import sys
 from diagnostic_msgs.msg import DiagnosticStatus
 from dual_arm_control import contract
 from dual_arm_control.contract import ARMS, joint_names
-from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.nodes.command_signature import command_key, signed
 from dual_arm_control.nodes.diagnostics import CounterDiagnostics, refusal_logger
@@ -32,7 +31,8 @@ from dual_arm_control.nodes.messages import (arm_command_message, fill_twist, jo
                                              stamp_ns, time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import ConfigParameters, NodeParameters
-from dual_arm_control.runtime.configuration import motion_config_for_scenario, planned_landing
+from dual_arm_control.runtime.configuration import (motion_config_for_cell,
+                                                    motion_config_for_scenario, planned_landing)
 from dual_arm_control.runtime.inputs import ArrivalBarrier
 from dual_arm_control.runtime.motion_step import MotionGeneratorStep
 from dual_arm_control.runtime.node_settings import node_table
@@ -65,7 +65,7 @@ class DsMotionGenerator(Node):
             defaults=lambda values: self._scenario_defaults(values, cell),
             extra_problem=self._landing_target_problem, on_change=self._on_setting)
         self._landing_target = np.asarray(settings['landing_target'], dtype=float)
-        base = MotionGeneratorConfig()
+        base = motion_config_for_cell(cell)
         if self._scenario is not None:
             base = motion_config_for_scenario(self._scenario, cell)
         parameters = ConfigParameters(self, base, self._on_config)

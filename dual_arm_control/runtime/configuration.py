@@ -15,17 +15,28 @@ import numpy as np
 PLACE_PRESS_DEPTH = 0.004
 
 
-def motion_config_for_scenario(scenario, cell, base=None):
-    """Return the MotionGeneratorConfig of a scenario: task, object, targets, speeds, standby."""
+def motion_config_for_cell(cell, base=None):
+    """
+    Return base (default MotionGeneratorConfig()) with the cell's facts: standby poses, pallet.
+
+    A motion generator started without a scenario needs them too: without the pallet's top face
+    a box lifted off it would not be kept clear of it (core.place.pallet_floor).
+    """
     base = MotionGeneratorConfig() if base is None else base
-    config = replace(
-        base, task=scenario.task, object_size=tuple(scenario.object.size),
-        standby_positions=tuple(tuple(cell.arm(arm).standby_position) for arm in ARMS),
+    return replace(
+        base, standby_positions=tuple(tuple(cell.arm(arm).standby_position) for arm in ARMS),
         standby_rotations=tuple(tuple(map(tuple, cell.arm(arm).R_world_standby))
                                 for arm in ARMS),
-        impact=replace(base.impact, impact_speed=scenario.speeds.impact),
-        speed=replace(base.speed, reach_speed=scenario.speeds.reach),
         place=replace(base.place, pallet=cell.pallet.top_face()))
+
+
+def motion_config_for_scenario(scenario, cell, base=None):
+    """Return the MotionGeneratorConfig of a scenario: task, object, targets, speeds, standby."""
+    base = motion_config_for_cell(cell, base)
+    config = replace(
+        base, task=scenario.task, object_size=tuple(scenario.object.size),
+        impact=replace(base.impact, impact_speed=scenario.speeds.impact),
+        speed=replace(base.speed, reach_speed=scenario.speeds.reach))
     toss = base.toss
     if scenario.speeds.toss is not None:
         toss = replace(toss, toss_speed=scenario.speeds.toss)

@@ -101,10 +101,7 @@ class ControllerStep:
         if self._schedule.due(stamp_ns):
             self._schedule.take(stamp_ns)
         if self._pending_config is not None:
-            touched = self._controller.touched
-            self._controller = PassiveController(self._model, self._q_null,
-                                                 self._pending_config)
-            self._controller.touched = touched
+            self._controller.reconfigure(self._pending_config)
             self._pending_config = None
         torque = self._torque(stamp_ns, joint_state.position, joint_state.velocity)
         if self._gravity_compensated:
