@@ -103,6 +103,33 @@ def test_a_rolled_pad_rises_to_clear_the_support_or_is_left_out():
     assert {roll for roll, _ in grasp_candidates(low_box, config, 0.02)} == {0.0}
 
 
+def test_a_box_to_be_set_down_is_grasped_as_high_as_the_overhang_allows():
+    """
+    Raised, the pad's top overhangs the face's top by -edge_margin - place_top_margin (2 cm).
+
+    The unrolled pads sit 5-10 cm higher on the catalogue boxes than the least lift puts them
+    (the rolled ones, longer across the face, 1-5 cm), and so do the wrists and forearms over
+    the front table; the pad still clears the support, and a box too low for a roll has none.
+    """
+    config = ReachabilityConfig()
+    clearance = 0.02
+    overhang = -config.edge_margin - config.place_top_margin
+    for size in ([0.16] * 3, CUBE, [0.26] * 3, [0.2, 0.3, 0.2], [0.25, 0.19, 0.2]):
+        low = grasp_candidates(size, config, clearance, both_ways=True)
+        high = grasp_candidates(size, config, clearance, both_ways=True, raised=True)
+        assert [roll for roll, _ in high] == [roll for roll, _ in low]
+        for (roll, raised), (_, lowest) in zip(high, low):
+            _, half_across = rolled_pad_half_extents(roll, 0.075, 0.05)
+            assert raised[2] + half_across == pytest.approx(0.5 * size[2] + overhang)
+            assert raised[2] - half_across >= -0.5 * size[2] + clearance - 1e-12
+            assert raised[2] >= lowest[2] + (0.05 if roll == 0.0 else 0.01) - 1e-12
+            np.testing.assert_array_equal(raised[:2], lowest[:2])
+    low_box = [0.2, 0.2, 0.1]
+    assert grasp_lift(low_box, config, 0.5 * math.pi, 0.02, raised=True) is None
+    assert grasp_lift(low_box, config, 0.0, 0.02, raised=True) == pytest.approx(0.05 + overhang
+                                                                                 - 0.05)
+
+
 def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
     """
     At 25 deg of yaw, 9 cm closer than nominal, the left face turns toward the left base.
