@@ -65,9 +65,8 @@ class DsMotionGenerator(Node):
             defaults=lambda values: self._scenario_defaults(values, cell),
             extra_problem=self._landing_target_problem, on_change=self._on_setting)
         self._landing_target = np.asarray(settings['landing_target'], dtype=float)
-        base = motion_config_for_cell(cell)
-        if self._scenario is not None:
-            base = motion_config_for_scenario(self._scenario, cell)
+        base = (motion_config_for_cell(cell) if self._scenario is None
+                else motion_config_for_scenario(self._scenario, cell))
         parameters = ConfigParameters(self, base, self._on_config)
         self.step = MotionGeneratorStep(
             parameters.config, {arm: arm_model(arm, cell) for arm in ARMS},
