@@ -27,7 +27,7 @@ from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.executables import EXECUTABLES
 from dual_arm_control.graph import GRAPHS, run_parameters
 from dual_arm_control.nodes.command_signature import COMMAND_KEY_VARIABLE, launch_key
-from dual_arm_control.nodes.ds_motion_generator import PHASE_LOG_PREFIX
+from dual_arm_control.nodes.ds_motion_generator import phase_log_events, PHASE_LOG_PREFIX
 from dual_arm_control.nodes.process import REALTIME_PRIORITY_VARIABLE
 from dual_arm_control.parameter_files import key_applies, parameter_file_problems
 from dual_arm_control.resources import config_path, load_yaml
@@ -365,10 +365,16 @@ def supervise(args, launcher):
 
 def _write_results(args):
     """Compute metrics and plots from the bridge's ground-truth log; return the exit code."""
-    from dual_arm_control.evaluation.episode import evaluate_episode, metrics_summary
+    from dual_arm_control.evaluation.episode import (evaluate_episode, metrics_summary,
+                                                     start_refusal)
+    try:
+        log = (args.out / 'logs' / 'ds_motion_generator.log').read_text()
+    except OSError:
+        log = ''
     try:
         metrics = evaluate_episode(args.scenario, args.out / 'trajectory.npz', args.out,
-                                   graph=args.graph)
+                                   graph=args.graph,
+                                   refusal=start_refusal(phase_log_events(log)))
     except (ConfigError, OSError, KeyError, ValueError) as error:
         print(f'dual_arm_bringup: cannot evaluate the episode: {error}', file=sys.stderr)
         return EXIT_NODE_FAILED

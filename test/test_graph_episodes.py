@@ -22,10 +22,15 @@ EPISODE_TIMEOUT = 240
 
 
 def run_episode(scenario, out_dir, *extra):
-    """Run one episode with the launcher; return (exit code, metrics dict, output text)."""
+    """
+    Run one episode (a shipped scenario's name or a file's Path) with the launcher.
+
+    Return (exit code, metrics dict, output text).
+    """
     bringup = Path(sys.executable).parent / 'dual_arm_bringup'
+    path = scenario if isinstance(scenario, Path) else SCENARIOS / f'{scenario}.yaml'
     result = subprocess.run(
-        [str(bringup), '--scenario', str(SCENARIOS / f'{scenario}.yaml'), '--out',
+        [str(bringup), '--scenario', str(path), '--out',
          str(out_dir), *extra], capture_output=True, text=True, timeout=EPISODE_TIMEOUT,
         env=dict(os.environ), cwd=out_dir.parent)
     metrics_file = out_dir / 'metrics.json'
@@ -48,6 +53,24 @@ def test_paper_place(tmp_path, ros_domain):
     # it was let go still descending, 3 mm above the table; limit of the task 0.1).
     assert m['place_speed'] < 0.05
     assert m['success'] and code == 0
+
+
+def test_a_refused_start_is_in_the_metrics(tmp_path, ros_domain):
+    """A place too near the pallet: the graph's motion generator refuses it and says why."""
+    from dataclasses import replace
+
+    from dual_arm_control.description.cell import load_cell
+    from dual_arm_control.evaluation.trials import write_trial_scenario
+    from dual_arm_control.scenario import load_scenario
+    cell = load_cell()
+    place = (0.66, 0.0, cell.surface_height(0.66, 0.0) + 0.1)
+    refused = replace(load_scenario('paper_place', cell=cell), place=place, duration=1.0)
+    write_trial_scenario(refused, tmp_path / 'refused.yaml', 'paper_place', 0)
+    out = tmp_path / 'refused'
+    code, m, output = run_episode(tmp_path / 'refused.yaml', out)
+    assert m, output + _logs(out)
+    assert 'too near the pallet' in (m['start_refusal'] or ''), output + _logs(out)
+    assert not m['success'] and code != 0
 
 
 def test_box_displaced_during_reach_is_still_grasped_and_tossed(tmp_path, ros_domain):

@@ -14,7 +14,8 @@ import types
 from conftest import SOURCE_ROOT
 from dual_arm_control.bringup import node_command, ros_value
 from dual_arm_control.graph import GRAPHS, run_parameters
-from dual_arm_control.nodes.ds_motion_generator import PHASE_LOG_PREFIX
+from dual_arm_control.nodes.ds_motion_generator import (phase_log_events, phase_log_line,
+                                                        PHASE_LOG_PREFIX)
 from graph_helpers import parameter_arguments, ProcessGroup
 import pytest
 
@@ -144,3 +145,22 @@ def test_the_nodes_the_launch_file_describes_run_an_episode(monkeypatch, tmp_pat
                   if PHASE_LOG_PREFIX in line]
     assert any('contact' in line for line in phases), phases
     assert any('manipulate' in line for line in phases), phases
+    events = phase_log_events(group.log('ds_motion_generator'))
+    assert len(events) == len(phases), 'every phase line of the real log parses'
+    assert any('grasp_settled' in names for _, names, _ in events), events
+
+
+def test_a_phase_log_line_reads_back_as_it_was_written():
+    """The launcher takes a refused start's reason from the motion generator's log lines."""
+    reason = ('place [0.66, 0.0, 0.35] m out of reach: with any grasp on the faces a wrist lies '
+              'at least 12 mm beyond its straight-arm reach there')
+    lines = [phase_log_line(0.3, 'standby', ('episode_started',), 'start_episode command'),
+             phase_log_line(0.305, 'standby', ('unreachable',), reason),
+             phase_log_line(1.5, 'reach', (), 'back: [not an event]'),
+             phase_log_line(2.0, 'contact', ('contact_left', 'contact_right'), 'both pads')]
+    logged = [f'[INFO] [12.{k}] [ds_motion_generator]: {line}' for k, line in enumerate(lines)]
+    text = '\n'.join(logged) + '\nan unrelated line\n'
+    assert phase_log_events(text) == [
+        (0.3, ('episode_started',), 'start_episode command'), (0.305, ('unreachable',), reason),
+        (1.5, (), 'back: [not an event]'),
+        (2.0, ('contact_left', 'contact_right'), 'both pads')]

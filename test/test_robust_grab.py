@@ -7,6 +7,7 @@ the grasp-reachability check before the reach, and a heavy box kept level while 
 """
 
 from dataclasses import replace
+import json
 import math
 
 from dual_arm_control.catalogue import load_catalogue
@@ -359,6 +360,9 @@ def test_failure_modes_count_each_trials_first_reason():
     assert reasons[0].startswith('no reach: the arms stayed at standby')
     assert failure_reason('pick_and_place', dict(refused, landed_in_container=None)).endswith(
         '(grasp refused as out of reach)')
+    miss = 'right arm misses its grasp frame by 57 mm, 12 deg within its joint limits'
+    assert failure_reason('pick_and_toss', dict(refused, start_refusal=miss)) == (
+        f'refused before the reach: {miss}')
     assert 'front_table - left/pad' in reasons[3]
     far_targets = ((1.1, 1.4), (1.2, 1.5))
     reasons += [f'UnreachableTargetError: landing target [{x}, -0.2, 0.25] m cannot be reached '
@@ -552,3 +556,19 @@ def test_a_place_too_near_the_pallet_is_refused_before_the_arms_move(cell):
     assert reasons and 'too near the pallet' in reasons[0], log.events
     for arm in ('left', 'right'):
         assert np.abs(log.trajectory[f'{arm}_dq']).max() < 0.05
+
+
+def test_a_refused_trial_reports_the_reason_in_its_metrics(cell, tmp_path):
+    """dual_arm_eval's in-process trial writes the motion generator's refusal into metrics."""
+    from dual_arm_control.evaluation.trial_runs import run_inprocess_trial
+    from dual_arm_control.evaluation.trial_summary import failure_reason
+    from dual_arm_control.evaluation.trials import write_trial_scenario
+    scenario = load_scenario('paper_place', cell=cell)
+    place = np.array([0.66, 0.0, cell.surface_height(0.66, 0.0) + 0.1])
+    path = tmp_path / 'trial_000' / 'scenario.yaml'
+    write_trial_scenario(replace(scenario, place=place, duration=1.0), path, 'paper_place', 0)
+    metrics = run_inprocess_trial(path)
+    assert 'too near the pallet' in metrics['start_refusal']
+    assert json.loads((path.parent / 'metrics.json').read_text()) == metrics
+    reason = failure_reason(scenario.task, metrics)
+    assert reason == f'refused before the reach: {metrics["start_refusal"]}'

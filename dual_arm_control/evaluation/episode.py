@@ -34,7 +34,7 @@ METRIC_KEYS = (
     'torque_clamp_count', 'refused_message_count', 'arm_collision_count', 'box_tilt_at_place',
     'max_joint_speed_ratio_left', 'max_joint_speed_ratio_right', 'joint_speed_limit_time_left',
     'joint_speed_limit_time_right', 'landing_error_in_container', 'landed_in_container',
-    'impact_speed_relative_left', 'impact_speed_relative_right', 'belt_drag',
+    'impact_speed_relative_left', 'impact_speed_relative_right', 'belt_drag', 'start_refusal',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -82,10 +82,21 @@ def _contact_directions(scenario, cell, models):
                               else {arm: models[arm].elbow_reach() for arm in ARMS}))
 
 
-def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME):
-    """Return the metrics dict of one episode; times count from start_time [s] of sim time."""
+def start_refusal(events):
+    """Return the motion generator's reason for refusing the task start, or None."""
+    return next((reason for _, names, reason in events if 'unreachable' in names), None)
+
+
+def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, refusal=None):
+    """
+    Return the metrics dict of one episode; times count from start_time [s] of sim time.
+
+    refusal: the motion generator's reason for refusing the task start (start_refusal), or
+    None.
+    """
     t = data['t'] - start_time
     result = dict.fromkeys(METRIC_KEYS + ('landing_prediction_error', 'place_speed'))
+    result['start_refusal'] = refusal
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
     models = {arm: arm_model(arm, cell) for arm in ARMS}
     normals, directions = _contact_directions(scenario, cell, models)
@@ -221,8 +232,12 @@ def hold_metrics(data):
     return result
 
 
-def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full'):
-    """Compute the metrics of an episode and write its plots into out_dir; return the metrics."""
+def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full', refusal=None):
+    """
+    Compute the metrics of an episode and write its plots into out_dir; return the metrics.
+
+    refusal: as for episode_metrics.
+    """
     out_dir = Path(out_dir)
     data = load_trajectory(trajectory_path)
     if graph == 'hold':
@@ -230,7 +245,7 @@ def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full'):
         return hold_metrics(data)
     cell = load_cell()
     scenario = load_scenario(scenario_path, cell=cell)
-    result = episode_metrics(scenario, data, cell)
+    result = episode_metrics(scenario, data, cell, refusal=refusal)
     events = {'contact': min((v for v in (result['t_contact_left'], result['t_contact_right'])
                               if v is not None), default=None),
               'release': result['t_release']}

@@ -91,7 +91,9 @@ def failure_reason(task, metrics):
                        f'at {first.get("t", float("nan")):.3f} s)')
     gap = metrics.get('contact_time_gap')
     drifts = [metrics.get(f'max_tool_drift_{arm}') for arm in ARMS]
-    if gap is None and all(drift is not None and drift < STANDBY_DRIFT for drift in drifts):
+    if gap is None and metrics.get('start_refusal'):
+        reasons.append(f'refused before the reach: {metrics["start_refusal"]}')
+    elif gap is None and all(drift is not None and drift < STANDBY_DRIFT for drift in drifts):
         reasons.append('no reach: the arms stayed at standby (' + (
             'the container never came in range, or the grasp was refused'
             if task in TOSS_TASKS else 'grasp refused as out of reach') + ')')

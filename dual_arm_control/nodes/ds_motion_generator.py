@@ -17,6 +17,7 @@ container estimate (/container/state) is one more tick input, and the toss aims 
 container (runtime.motion_step).
 """
 
+import re
 import sys
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -46,9 +47,28 @@ from std_srvs.srv import Trigger
 MARKER_PERIOD = 0.05
 # Start of the log line of a phase change (the launcher echoes these as progress).
 PHASE_LOG_PREFIX = 'phase at '
+_PHASE_LOG_LINE = re.compile(re.escape(PHASE_LOG_PREFIX) + r'(?P<time>[0-9.]+) s: (?P<phase>\w+)'
+                             r'(?: \[(?P<events>[^\]]*)\])?: (?P<reason>.*)$')
 TICK_INPUTS = frozenset(('object', *(f'{arm}_{kind}' for arm in ARMS
                                      for kind in ('joints', 'ft'))))
 CYCLE_TRIGGER = frozenset(('left_joints',))
+
+
+def phase_log_line(time, phase, events, reason):
+    """Return the log line of a phase change: time [s], phase name, events, reason."""
+    listed = f' [{", ".join(events)}]' if events else ''
+    return f'{PHASE_LOG_PREFIX}{time:.3f} s: {phase}{listed}: {reason}'
+
+
+def phase_log_events(text):
+    """Return [(time [s], events tuple, reason)] of the phase lines in a node log's text."""
+    found = []
+    for line in text.splitlines():
+        match = _PHASE_LOG_LINE.search(line)
+        if match:
+            events = tuple(match['events'].split(', ')) if match['events'] else ()
+            found.append((float(match['time']), events, match['reason']))
+    return found
 
 
 class DsMotionGenerator(Node):
@@ -207,9 +227,8 @@ class DsMotionGenerator(Node):
     def _publish(self, tick):
         if tick.phase.reason and tick.stamp_ns != self._last_logged_ns:
             self._last_logged_ns = tick.stamp_ns
-            events = f' [{", ".join(tick.phase.events)}]' if tick.phase.events else ''
-            self.get_logger().info(f'{PHASE_LOG_PREFIX}{tick.stamp_ns * 1e-9:.3f} s: '
-                                   f'{tick.phase.phase.value}{events}: {tick.phase.reason}')
+            self.get_logger().info(phase_log_line(tick.stamp_ns * 1e-9, tick.phase.phase.value,
+                                                  tick.phase.events, tick.phase.reason))
         for arm in ARMS:
             self._command_pubs[arm].publish(arm_command_message(arm, tick.commands[arm]))
         fill_twist(self._twist_msg, tick.desired_twist)
