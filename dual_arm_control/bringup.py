@@ -365,16 +365,14 @@ def supervise(args, launcher):
 
 def _write_results(args):
     """Compute metrics and plots from the bridge's ground-truth log; return the exit code."""
-    from dual_arm_control.evaluation.episode import (evaluate_episode, metrics_summary,
-                                                     start_refusal)
+    from dual_arm_control.evaluation.episode import evaluate_episode, metrics_summary
     try:
         log = (args.out / 'logs' / 'ds_motion_generator.log').read_text()
     except OSError:
         log = ''
     try:
         metrics = evaluate_episode(args.scenario, args.out / 'trajectory.npz', args.out,
-                                   graph=args.graph,
-                                   refusal=start_refusal(phase_log_events(log)))
+                                   graph=args.graph, events=phase_log_events(log))
     except (ConfigError, OSError, KeyError, ValueError) as error:
         print(f'dual_arm_bringup: cannot evaluate the episode: {error}', file=sys.stderr)
         return EXIT_NODE_FAILED

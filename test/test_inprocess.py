@@ -24,9 +24,12 @@ def test_paper_toss_in_process(cell, torque_interface):
     """The robot adding g(q) itself must give the same task: the controller leaves it out."""
     scenario = load_scenario(scenario_path('paper_toss'), cell=cell)
     config = RunnerConfig(torque_interface=torque_interface)
-    metrics = episode_metrics(scenario, run_episode(scenario, config=config,
-                                                    cell=cell).trajectory, cell)
+    log = run_episode(scenario, config=config, cell=cell)
+    metrics = episode_metrics(scenario, log.trajectory, cell, events=log.events)
     assert metrics['contact_time_gap'] <= 0.010
+    # The pads leave the box after the task lets go, within the opening (10 ms: 5 FRI cycles).
+    assert 0.0 <= metrics['t_release'] - metrics['t_task_release'] <= 0.010
+    assert metrics['start_refusal'] is None
     assert metrics['impact_speed_along_direction_left'] == pytest.approx(0.5, rel=0.15)
     assert metrics['impact_speed_along_direction_right'] == pytest.approx(0.5, rel=0.15)
     assert metrics['max_slip'] <= 0.01

@@ -363,6 +363,13 @@ def test_failure_modes_count_each_trials_first_reason():
     miss = 'right arm misses its grasp frame by 57 mm, 12 deg within its joint limits'
     assert failure_reason('pick_and_toss', dict(refused, start_refusal=miss)) == (
         f'refused before the reach: {miss}')
+    lost = dict(late, contact_time_gap=0.004, t_release=1.544, t_task_release=1.806,
+                release_velocity_error=0.3, landing_error=0.006)
+    assert failure_reason('pick_and_toss', lost) == (
+        'box lost in the carry: both pads off 0.262 s before the task let go; '
+        'release_velocity_error 0.3 > 0.1')
+    assert failure_reason('pick_and_toss', dict(lost, t_task_release=1.54)).startswith(
+        'release_velocity_error'), 'the pads leaving just after the task let go is a release'
     assert 'front_table - left/pad' in reasons[3]
     far_targets = ((1.1, 1.4), (1.2, 1.5))
     reasons += [f'UnreachableTargetError: landing target [{x}, -0.2, 0.25] m cannot be reached '

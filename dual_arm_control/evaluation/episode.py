@@ -35,6 +35,7 @@ METRIC_KEYS = (
     'max_joint_speed_ratio_left', 'max_joint_speed_ratio_right', 'joint_speed_limit_time_left',
     'joint_speed_limit_time_right', 'landing_error_in_container', 'landed_in_container',
     'impact_speed_relative_left', 'impact_speed_relative_right', 'belt_drag', 'start_refusal',
+    't_task_release',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -82,21 +83,25 @@ def _contact_directions(scenario, cell, models):
                               else {arm: models[arm].elbow_reach() for arm in ARMS}))
 
 
-def start_refusal(events):
-    """Return the motion generator's reason for refusing the task start, or None."""
-    return next((reason for _, names, reason in events if 'unreachable' in names), None)
+def first_event(events, name):
+    """Return (sim time [s], reason) of the first event called name, or (None, None)."""
+    return next(((time, reason) for time, names, reason in events if name in names),
+                (None, None))
 
 
-def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, refusal=None):
+def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=()):
     """
     Return the metrics dict of one episode; times count from start_time [s] of sim time.
 
-    refusal: the motion generator's reason for refusing the task start (start_refusal), or
-    None.
+    events: the motion generator's [(sim time [s], event names, reason)] of the episode
+    (the in-process runner's log, or its node's log lines); they give why a start was
+    refused and when the task let go.
     """
     t = data['t'] - start_time
     result = dict.fromkeys(METRIC_KEYS + ('landing_prediction_error', 'place_speed'))
-    result['start_refusal'] = refusal
+    result['start_refusal'] = first_event(events, 'unreachable')[1]
+    released_at = first_event(events, 'released')[0]
+    result['t_task_release'] = None if released_at is None else released_at - start_time
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
     models = {arm: arm_model(arm, cell) for arm in ARMS}
     normals, directions = _contact_directions(scenario, cell, models)
@@ -232,11 +237,11 @@ def hold_metrics(data):
     return result
 
 
-def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full', refusal=None):
+def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full', events=()):
     """
     Compute the metrics of an episode and write its plots into out_dir; return the metrics.
 
-    refusal: as for episode_metrics.
+    events: as for episode_metrics.
     """
     out_dir = Path(out_dir)
     data = load_trajectory(trajectory_path)
@@ -245,13 +250,14 @@ def evaluate_episode(scenario_path, trajectory_path, out_dir, graph='full', refu
         return hold_metrics(data)
     cell = load_cell()
     scenario = load_scenario(scenario_path, cell=cell)
-    result = episode_metrics(scenario, data, cell, refusal=refusal)
-    events = {'contact': min((v for v in (result['t_contact_left'], result['t_contact_right'])
-                              if v is not None), default=None),
-              'release': result['t_release']}
+    result = episode_metrics(scenario, data, cell, events=events)
+    instants = {'contact': min((v for v in (result['t_contact_left'],
+                                            result['t_contact_right']) if v is not None),
+                               default=None),
+                'release': result['t_release']}
     shifted = dict(data, t=data['t'] - EPISODE_START_TIME)
-    plots.plot_tool_speeds(shifted, events, out_dir / 'tool_speeds.png')
-    plots.plot_object_motion(shifted, events, out_dir / 'object_motion.png')
+    plots.plot_tool_speeds(shifted, instants, out_dir / 'tool_speeds.png')
+    plots.plot_object_motion(shifted, instants, out_dir / 'object_motion.png')
     plots.plot_trajectories_3d(shifted, out_dir / 'trajectories_3d.png')
     return result
 

@@ -18,7 +18,7 @@ import subprocess
 import sys
 
 from dual_arm_control.description.cell import load_cell
-from dual_arm_control.evaluation.episode import episode_metrics, start_refusal
+from dual_arm_control.evaluation.episode import episode_metrics
 from dual_arm_control.evaluation.trial_summary import succeeded, TrialOutcome
 from dual_arm_control.inprocess import run_episode
 from dual_arm_control.scenario import load_scenario
@@ -67,7 +67,7 @@ def run_inprocess_trial(scenario_file, keep_trajectory=False):
     scenario = load_scenario(scenario_file, cell=cell)
     log = run_episode(scenario, cell=cell)
     trajectory = log.trajectory
-    metrics = episode_metrics(scenario, trajectory, cell, refusal=start_refusal(log.events))
+    metrics = episode_metrics(scenario, trajectory, cell, events=log.events)
     (scenario_file.parent / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
     trajectory_file = scenario_file.parent / 'trajectory.npz'
     if keep_trajectory:

@@ -19,6 +19,9 @@ import numpy as np
 
 # A tool that never moved farther than this from its start did not reach [m].
 STANDBY_DRIFT = 0.01
+# Both pads off the box this long before the task let go: it was lost in the carry [s] (a
+# release leaves the pads within the hands' opening, 4 ms after the task lets go in paper_toss).
+LOST_BOX_LEAD = 0.02
 
 
 @dataclass(frozen=True)
@@ -103,6 +106,10 @@ def failure_reason(task, metrics):
         reasons.append(_exceeds('contact_time_gap', gap, CONTACT_GAP_LIMIT, 's'))
     if gap is not None and metrics.get('t_grasp') is None:
         reasons.append('no sustained grasp')
+    left, let_go = metrics.get('t_release'), metrics.get('t_task_release')
+    if left is not None and let_go is not None and let_go - left >= LOST_BOX_LEAD:
+        reasons.append(f'box lost in the carry: both pads off {let_go - left:.3f} s before the '
+                       'task let go')
     checks = [('max_slip', SLIP_LIMIT, 'm')]
     if task in TOSS_TASKS:
         checks += [('release_position_error', RELEASE_POSITION_LIMIT, 'm'),
