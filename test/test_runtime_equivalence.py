@@ -87,8 +87,8 @@ def assert_same_episode(scenario, graph_dir, duration, cell):
         assert difference.max(initial=0.0) <= TOLERANCE, (
             f'{name} differs by up to {difference.max():.3g}')
     graph_metrics = json.loads((graph_dir / 'metrics.json').read_text())
-    inprocess_metrics = json.loads(json.dumps(episode_metrics(scenario, inprocess.trajectory,
-                                                              cell)))
+    inprocess_metrics = json.loads(json.dumps(episode_metrics(
+        scenario, inprocess.trajectory, cell, events=inprocess.events)))
     graph_numbers = numeric_fields(graph_metrics)
     inprocess_numbers = numeric_fields(inprocess_metrics)
     assert graph_numbers.keys() == inprocess_numbers.keys()

@@ -344,8 +344,9 @@ def test_two_inprocess_trials_in_parallel(tmp_path, cell):
     metrics = json.loads((out / 'trial_000' / 'metrics.json').read_text())
     assert set(METRIC_KEYS) <= set(metrics)
     trial = sample_trial(base, 0, cell)
-    rerun = json.loads(json.dumps(episode_metrics(trial, run_episode(trial, cell=cell).trajectory,
-                                                  cell)))
+    log = run_episode(trial, cell=cell)
+    rerun = json.loads(json.dumps(episode_metrics(trial, log.trajectory, cell,
+                                                  events=log.events)))
     assert same_within(rerun, metrics, 1e-9), 'the batch is reproducible from its seed'
     for name in ('landing_error.png', 'impact_speeds.png', 'release_errors.png', 'grasp.png',
                  'landing_positions.png', 'sensitivity.png'):
@@ -372,7 +373,8 @@ def test_one_graph_trial(tmp_path, cell, ros_domain, runner, mode):
     assert not (folder / 'trajectory.npz').exists()
     metrics = json.loads((folder / 'metrics.json').read_text())
     trial = load_scenario(folder / 'scenario.yaml', cell)
-    inprocess = episode_metrics(trial, run_episode(trial, cell=cell).trajectory, cell)
+    log = run_episode(trial, cell=cell)
+    inprocess = episode_metrics(trial, log.trajectory, cell, events=log.events)
     assert set(metrics) == set(inprocess)
     # Within one 2 ms FRI cycle of the scenario's duration, in either mode.
     assert metrics['sim_duration'] == pytest.approx(2.0, abs=0.0025)
