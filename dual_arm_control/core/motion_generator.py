@@ -341,14 +341,7 @@ class DualArmMotionGenerator:
             desired_relative_velocity(grasp_points, omega_object), grasp_points,
             config.coordination).reshape(2, 3)
         velocity = saturated_velocity(velocity, config.max_carry_speed)
-        commands = {}
-        for index, arm in enumerate(ARMS):
-            R_target = frames[arm].R_world_grasp
-            commands[arm] = ArmCommand(
-                velocity[index], omega_object
-                + orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
-                R_target, grasp_points[index])
-        return commands
+        return self._grasp_pose_commands(velocity, R_tools, frames, omega_object)
 
     def _open_hands(self, R_tools, frames):
         """
@@ -358,17 +351,18 @@ class DualArmMotionGenerator:
         lag under load: unloaded, the pads (touching a few ms more) pushed the box 1.5 % fast.
         """
         config = self._config
-        commands = {}
-        for index, arm in enumerate(ARMS):
-            normal = frames[arm].normal
-            velocity = self._release_object_velocity - config.release_opening_speed * normal
-            velocity = saturated_velocity(velocity, config.max_carry_speed)
-            R_target = frames[arm].R_world_grasp
-            commands[arm] = ArmCommand(
-                velocity,
-                orientation_ds_angular_velocity(R_tools[index], R_target, config.orientation),
-                R_target, frames[arm].p_world_grasp)
-        return commands
+        velocity = saturated_velocity(
+            self._release_object_velocity
+            - config.release_opening_speed * np.array([frames[arm].normal for arm in ARMS]),
+            config.max_carry_speed)
+        return self._grasp_pose_commands(velocity, R_tools, frames, np.zeros(3))
+
+    def _grasp_pose_commands(self, velocity, R_tools, frames, omega_object):
+        """Return the commands that move the tools at velocity (2, 3) turning to the grasp."""
+        return {arm: ArmCommand(velocity[index], omega_object + orientation_ds_angular_velocity(
+                    R_tools[index], frames[arm].R_world_grasp, self._config.orientation),
+                    frames[arm].R_world_grasp, frames[arm].p_world_grasp)
+                for index, arm in enumerate(ARMS)}
 
     def _clear_of_the_box(self, commands, p_tools, p_object, v_object):
         """Return retract commands that keep each pad out of the flying box's way."""
