@@ -25,8 +25,8 @@ ORIENTATION_MODES = ('free', 'given', 'hold', 'level')
 """How the toss orients the carried object (TossConfig.orientation)."""
 
 _TOSS_REGION = ModulationRegionConfig(
-    transitory_distance=0.14, radial_distance=0.30, normal_distance=0.04,
-    tangent_distance=0.02, radial_slope=100.0, normal_slope=600.0, tangent_slope=300.0)
+    transitory_distance=0.14, radial_distance=0.30, normal_distance=0.15,
+    tangent_distance=0.02, radial_slope=100.0, normal_slope=80.0, tangent_slope=300.0)
 
 
 @dataclass(frozen=True)
@@ -35,9 +35,13 @@ class TossConfig:
     Desired release state of the object and the modulation region of the toss DS.
 
     region: the modulation region around x_r. Defaults: x_t 0.14 m before the release (the
-    reference's 0.4 rho with rho = 0.35), delta_normal 0.04 m, delta_tangent 0.02 m and a radial
-    ball of 0.30 m around x_t, which keeps the field along e1 positive through the release point
-    and 0.1 m beyond.
+    reference's 0.4 rho with rho = 0.35), delta_tangent 0.02 m and a radial ball of 0.30 m
+    around x_t, which keeps the field along e1 positive through the release point and 0.1 m
+    beyond; delta_normal 0.15 m with a normal slope of 80/m, so that a box off the release line
+    joins it in the line's own field instead of going to x_t first. Thrown sideways, x_t lies
+    to the side of the box; with delta_normal 0.04 m (slope 600/m) the field turned from x_t
+    onto the line within a few cm and asked the held box for up to 70 m/s^2 along the pads'
+    normal, and the box left the grasp (toss_to_target, a 0.16 m cube to y = -0.285 m).
     """
 
     release_position: tuple = setting(
