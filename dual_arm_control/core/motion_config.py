@@ -65,6 +65,12 @@ class MotionGeneratorConfig:
     toss_speed_time_constant: float = setting(
         0.05, "The object's desired speed rises from the impact speed to the toss speed with "
         'this time constant after contact.', unit='s', low=0, high=5.0, low_open=True)
+    halt_squeeze_speed: float = setting(
+        0.1, 'When the task halts with a box held (a controller lost), each pad is driven into '
+        "its face at this speed: the arms stop from the carry's speed within about 20 ms and "
+        'the box, held by friction only, slid out of a loose squeeze (in-process, 16 kills '
+        'halfway through the carry of paper_toss_random trials: 5 fell 2.0-2.5 cm at 0, none '
+        'over 1.2 cm at 0.1 m/s).', unit='m/s', low=0, high=0.5)
     held_object_time_constant: float = setting(
         0.1, "While both pads hold the box it is read from the pads' kinematics, its offset "
         "from their midpoint following the tracker's estimate with this time constant "

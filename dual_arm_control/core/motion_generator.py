@@ -203,8 +203,9 @@ class DualArmMotionGenerator:
         Return the MotionOutput of a halted tick: the task stops where it is (module text).
 
         A held box (CONTACT, MANIPULATE) gets the carry's commands with a zero object twist (a
-        point attractor back to where the halt found it pulled the pair along: worse); otherwise
-        every tool holds its pose at the halt.
+        point attractor back to where the halt found it pulled the pair along: worse) and each
+        pad pressed into its face at halt_squeeze_speed; otherwise every tool holds its pose at
+        the halt.
         """
         halt, phase, first = self._halt, self._phase_machine.phase, not self._halt
         if first:
@@ -212,6 +213,9 @@ class DualArmMotionGenerator:
         zero = np.zeros(3)
         if phase in (Phase.CONTACT, Phase.MANIPULATE):
             commands = self._carry(p_tools, R_tools, frames, zero, zero)
+            commands = {arm: replace(commands[arm], v_world=commands[arm].v_world
+                                     + self._config.halt_squeeze_speed * frames[arm].normal)
+                        for arm in ARMS}
         else:
             commands = self._standby(p_tools, R_tools, halt['tools'], halt['rotations'])
         return MotionOutput(
