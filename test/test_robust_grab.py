@@ -272,6 +272,23 @@ def test_a_gain_above_one_brings_both_pads_in_together_at_the_commanded_speed():
     assert np.all(np.abs(speeds - 1.0) < 0.05)
 
 
+def _tilted_pads(shift_along_face):
+    """Faces 0.26 m square at y = +-0.1 m; the left pad tilted 7 deg, the right one flush."""
+    from dual_arm_control.core.grasp import FaceRectangle
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    centres = np.array([[0.4, 0.1, 0.3], [0.4, -0.1, 0.3]])
+    axes = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    faces = [FaceRectangle(centre, normal, axes, np.array([0.13, 0.13]))
+             for centre, normal in zip(centres, normals)]
+    p_tools = centres - 0.02 * normals + np.array([shift_along_face, 0.0, 0.0])
+    flush = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    tilt = math.radians(7.0)
+    about_tool_y = np.array([[math.cos(tilt), 0.0, math.sin(tilt)], [0.0, 1.0, 0.0],
+                             [-math.sin(tilt), 0.0, math.cos(tilt)]])
+    mirrored = np.diag([1.0, -1.0, -1.0])
+    return faces, p_tools, [flush @ about_tool_y, mirrored @ flush]
+
+
 def test_a_pad_tilted_against_its_face_is_timed_by_its_nearest_corner():
     """
     A pad tilted 7 deg against its face is 9.1 mm closer to it at its near end than at its centre.
@@ -280,19 +297,30 @@ def test_a_pad_tilted_against_its_face_is_timed_by_its_nearest_corner():
     side is 0.075 sin 7 deg = 9.1 mm closer than its centre.
     """
     from dual_arm_control.core.approach import first_touch_gaps
-    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
-    grasp_points = np.array([[0.4, 0.1, 0.3], [0.4, -0.1, 0.3]])
-    p_tools = grasp_points - 0.02 * normals
-    flush = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-    tilt = math.radians(7.0)
-    about_tool_y = np.array([[math.cos(tilt), 0.0, math.sin(tilt)], [0.0, 1.0, 0.0],
-                             [-math.sin(tilt), 0.0, math.cos(tilt)]])
-    mirrored = np.diag([1.0, -1.0, -1.0])
-    R_tools = [flush @ about_tool_y, mirrored @ flush]
-    gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, 0.075, 0.05)
-    assert R_tools[1][:, 2] @ normals[1] == pytest.approx(1.0)
+    faces, p_tools, R_tools = _tilted_pads(0.0)
+    gaps = first_touch_gaps(faces, p_tools, R_tools, 0.075, 0.05)
+    assert R_tools[1][:, 2] @ faces[1].normal == pytest.approx(1.0)
     assert gaps[1] == pytest.approx(0.02)
-    assert gaps[0] == pytest.approx(0.02 - 0.075 * math.sin(tilt))
+    assert gaps[0] == pytest.approx(0.02 - 0.075 * math.sin(math.radians(7.0)))
+
+
+@pytest.mark.parametrize('shift', [0.12, -0.12])
+def test_a_pad_overhanging_its_face_is_timed_where_it_meets_the_face(shift):
+    """
+    A pad centred 0.12 m along a 0.26 m face overhangs the face's edge by 0.065 m.
+
+    The tilted left pad's near end points to -x. Shifted to -x, that end lies beside the face
+    and the pad touches first where it crosses the face's edge, 0.01 m from its centre along
+    the face: 0.01 tan 7 deg = 1.2 mm nearer than its centre, not 9.1 mm. Shifted to +x, the
+    near end lies over the face and still touches first. The flush right pad keeps 0.02 m.
+    """
+    from dual_arm_control.core.approach import first_touch_gaps
+    faces, p_tools, R_tools = _tilted_pads(shift)
+    gaps = first_touch_gaps(faces, p_tools, R_tools, 0.075, 0.05)
+    tilt = math.radians(7.0)
+    expected = 0.02 - (0.01 * math.tan(tilt) if shift < 0.0 else 0.075 * math.sin(tilt))
+    assert gaps[0] == pytest.approx(expected)
+    assert gaps[1] == pytest.approx(0.02)
 
 
 def test_null_space_posture_follows_a_reachable_solution_within_limits(cell):

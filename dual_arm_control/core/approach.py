@@ -21,24 +21,57 @@ import numpy as np
 TOSS_TASKS = (Task.PICK_AND_TOSS, Task.TOSS_TO_TARGET, Task.PLACE_TOSS)
 
 
-def first_touch_gaps(grasp_points, p_tools, R_tools, normals, pad_half_length, pad_half_width):
+def first_touch_gaps(faces, p_tools, R_tools, pad_half_length, pad_half_width):
     """
-    Return each pad's gap (2,) [m] to its face plane from the pad corner nearest to it.
+    Return each pad's gap (2,) [m] to its face from the point of the pad that touches first.
 
-    grasp_points, p_tools (2, 3) [m]; R_tools: the two tool rotations (pad normal = tool z,
-    pad length along tool x); normals (2, 3): the inward face normals. A pad tilted against
-    its face touches with that corner first: synchronising the pads' centres let a pad 5-8 deg
-    off its face (the face turned toward its arm's base, box yawed 20 deg) touch 10-15 ms
-    before the other. Zero half extents give the gaps of the pads' centres.
+    faces: the two FaceRectangle; p_tools (2, 3) [m]; R_tools: the two tool rotations (pad
+    normal = tool z, pad length along tool x). A pad tilted against its face touches with its
+    nearest corner: synchronising the pads' centres let a pad 5-8 deg off its face (the face
+    turned toward its arm's base, box yawed 20 deg) touch 10-15 ms before the other. Only the
+    part of the pad over the face can touch it: a pad overhanging the face's edge touches with
+    its nearest point above the face, found by clipping the pad's outline to the face
+    (pad_overlap_gap). Zero half extents give the gaps of the pads' centres.
     """
-    corners = np.array([[length, width, 0.0] for length in (-pad_half_length, pad_half_length)
-                        for width in (-pad_half_width, pad_half_width)])
+    outline = np.array([[-pad_half_length, -pad_half_width, 0.0],
+                        [pad_half_length, -pad_half_width, 0.0],
+                        [pad_half_length, pad_half_width, 0.0],
+                        [-pad_half_length, pad_half_width, 0.0]])
     gaps = np.empty(2)
-    for index in range(2):
-        normal = normals[index]
-        protrusion = float(np.max(corners @ (R_tools[index].T @ normal)))
-        gaps[index] = float((grasp_points[index] - p_tools[index]) @ normal) - protrusion
+    for index, face in enumerate(faces):
+        corners = p_tools[index] + outline @ np.asarray(R_tools[index]).T
+        corner_gaps = (face.centre - corners) @ face.normal
+        in_face = (corners - face.centre) @ face.axes.T
+        gap = pad_overlap_gap(in_face, corner_gaps, face.half_extents)
+        gaps[index] = float(np.min(corner_gaps)) if gap is None else gap
     return gaps
+
+
+def pad_overlap_gap(outline, gaps, half_extents):
+    """
+    Return the smallest gap [m] over the part of a pad's outline above its face, or None.
+
+    outline (n, 2) [m]: the pad's corners in order, in the face's axes from its centre; gaps
+    (n,) [m]: each corner's gap to the face plane, which varies linearly over the flat pad.
+    The outline is clipped to the face rectangle |u| <= half_extents (Sutherland-Hodgman,
+    the gap carried along) and the smallest gap of the clipped polygon's vertices returned;
+    None when the pad lies wholly beside the face.
+    """
+    polygon = [np.array([u, v, gap]) for (u, v), gap in zip(outline, gaps)]
+    for axis, sign in ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)):
+        clipped = []
+        for start, end in zip(polygon, polygon[1:] + polygon[:1]):
+            inside_start = half_extents[axis] - sign * start[axis]
+            inside_end = half_extents[axis] - sign * end[axis]
+            if inside_start >= 0.0:
+                clipped.append(start)
+            if (inside_start >= 0.0) != (inside_end >= 0.0):
+                fraction = inside_start / (inside_start - inside_end)
+                clipped.append(start + fraction * (end - start))
+        polygon = clipped
+        if not polygon:
+            return None
+    return float(min(vertex[2] for vertex in polygon))
 
 
 def synchronised_arrival(velocity, gaps, normals, schedule):

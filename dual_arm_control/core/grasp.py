@@ -12,6 +12,7 @@ coincides with the grasp frame.
 from dataclasses import dataclass
 import functools
 import math
+from typing import NamedTuple
 
 from dual_arm_control.core.geometry import cross3, turned_rectangle_half_extents
 import numpy as np
@@ -43,6 +44,27 @@ def _R_object_grasp(arm):
     z_axis = np.array([0.0, -sign, 0.0])
     x_axis = np.array([1.0, 0.0, 0.0])
     return np.column_stack((x_axis, cross3(z_axis, x_axis), z_axis))
+
+
+class FaceRectangle(NamedTuple):
+    """The face a pad grasps, in the world: a rectangle on the box."""
+
+    centre: np.ndarray
+    """(3,) [m], the face's centre."""
+    normal: np.ndarray
+    """(3,) the inward normal (into the object)."""
+    axes: np.ndarray
+    """(2, 3) the face's in-plane axes: object x and object z."""
+    half_extents: np.ndarray
+    """(2,) [m], the face's half extents along axes."""
+
+
+def face_rectangle(arm, p_world_object, R_world_object, size):
+    """Return the FaceRectangle of an arm's face for an object pose and box size [m]."""
+    R_world_object = np.asarray(R_world_object, dtype=float)
+    return FaceRectangle(p_world_object + R_world_object @ p_object_grasp(arm, size),
+                         R_world_object @ _R_object_grasp(arm)[:, 2],
+                         R_world_object[:, [0, 2]].T, 0.5 * np.array([size[0], size[2]]))
 
 
 def p_object_grasp(arm, size, offset=(0.0, 0.0, 0.0)):

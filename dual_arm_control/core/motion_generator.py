@@ -19,7 +19,7 @@ from dual_arm_control.core.approach import (first_touch_gaps, impact_directions,
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.contact import ContactDetector, FtBiasEstimator
 from dual_arm_control.core.elbow_reach import reachable_release_rotation
-from dual_arm_control.core.grasp import grasp_frame
+from dual_arm_control.core.grasp import face_rectangle, grasp_frame
 from dual_arm_control.core.held_object import HeldObjectEstimate
 from dual_arm_control.core.impact import impact_ds_velocity, impact_geometry
 from dual_arm_control.core.manipulation import (cooperative_manipulation_velocity,
@@ -176,7 +176,8 @@ class DualArmMotionGenerator:
             impact_directions, config, frames, object_velocity,
             support_height_below(config, p_object), self._grasp_roll, elbow_reaches))
         if phase is Phase.REACH:
-            commands = self._reach(p_tools, R_tools, frames, directions, dt)
+            faces = [face_rectangle(arm, p_object, R_object, config.object_size) for arm in ARMS]
+            commands = self._reach(p_tools, R_tools, frames, faces, directions, dt)
             commands = yield_to_single_contact(commands, contacts, frames)
             if config.moving_grab.enabled:
                 commands = self._follow_belt(commands)
@@ -296,7 +297,7 @@ class DualArmMotionGenerator:
             target = level_rotation(R_object)
         return object_angular_velocity(R_object, target, self._object_orientation_ds)
 
-    def _reach(self, p_tools, R_tools, frames, directions, dt):
+    def _reach(self, p_tools, R_tools, frames, faces, directions, dt):
         """Return the coordinated reach-with-impact commands (eqs. 1-6, Proposition 2)."""
         config = self._config
         grasp_points = np.array([frames[arm].p_world_grasp for arm in ARMS])
@@ -312,7 +313,7 @@ class DualArmMotionGenerator:
         if config.impact.synchronisation_distance > 0.0:
             normals = np.array([frames[arm].normal for arm in ARMS])
             pad, schedule = config.arrival_synchroniser()
-            gaps = first_touch_gaps(grasp_points, p_tools, R_tools, normals, *pad)
+            gaps = first_touch_gaps(faces, p_tools, R_tools, *pad)
             velocity = synchronised_arrival(velocity, gaps, normals, schedule)
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
