@@ -313,6 +313,26 @@ def test_command_line_refuses_bad_values(capsys):
     assert error.value.code == 2
 
 
+def test_all_runs_every_experiment_then_writes_the_report(tmp_path, monkeypatch):
+    """all: each experiment into --results/NAME in the paper's order, then the report."""
+    ran = []
+
+    def fake_runner(name):
+        def run(out, limit=None, **kwargs):
+            ran.append((name, out, limit))
+            out.mkdir(parents=True)
+            return {'wall_time': 0.0}
+        return run
+
+    monkeypatch.setattr(experiments, 'RUNNERS',
+                        {name: fake_runner(name) for name in paper_results.EXPERIMENTS})
+    report_file = tmp_path / 'results.md'
+    assert experiments.main(['all', '--results', str(tmp_path), '--out', str(report_file),
+                             '--limit', '2']) == 0
+    assert ran == [(name, tmp_path / name, 2) for name in paper_results.EXPERIMENTS]
+    assert report_file.read_text().startswith('# Results')
+
+
 def test_one_toss_to_target_run_writes_results_and_plot(tmp_path):
     assert experiments.main(['toss_to_target', '--limit', '1', '--out', str(tmp_path)]) == 0
     results = json.loads((tmp_path / paper_results.RESULTS_FILE).read_text())

@@ -4,8 +4,9 @@ dual_arm_experiment: regenerate the paper's experiments 1, 2, 3 and 5 and docs/r
 `dual_arm_experiment NAME [--out DIR]`, NAME one of fast_toss (IV-A, Figures 6-7: the node graph
 via dual_arm_bringup), toss_workspace (Figure 8), place_vs_toss (IV-B, Figures 9-10),
 toss_to_target (landing error over the front table), report (docs/results.md from the JSON
-files). Each experiment writes OUT/results.json and its PNG plots; runs are deterministic
-(lockstep graph, in-process runner, fixed seeds).
+files) or all (the four experiments into --results, then the report into --out). Each
+experiment writes OUT/results.json and its PNG plots; runs are deterministic (lockstep graph,
+in-process runner, fixed seeds).
 """
 
 import argparse
@@ -26,13 +27,14 @@ def parse_arguments(argv=None):
     """Parse the command line."""
     parser = argparse.ArgumentParser(
         prog='dual_arm_experiment', description=__doc__.split('\n')[1])
-    parser.add_argument('name', choices=EXPERIMENTS + ('report',),
-                        help='experiment to regenerate, or report (docs/results.md)')
+    parser.add_argument('name', choices=EXPERIMENTS + ('report', 'all'),
+                        help='experiment to regenerate, report (docs/results.md), or all (every '
+                             'experiment, then the report)')
     parser.add_argument('--out', type=Path,
-                        help='output directory (default docs/results/NAME); for report the '
-                             'markdown file (default docs/results.md)')
+                        help='output directory (default docs/results/NAME); for report and all '
+                             'the markdown file (default docs/results.md)')
     parser.add_argument('--results', type=Path, default=Path('docs/results'),
-                        help="report only: directory holding the experiments' results")
+                        help="report and all: directory holding the experiments' results")
     parser.add_argument('--limit', type=int,
                         help='quick check: only the first N tosses / speeds / targets '
                              '(toss_workspace also samples fewer arm configurations)')
@@ -42,7 +44,7 @@ def parse_arguments(argv=None):
 
 
 def main(argv=None):
-    """Run one experiment or the report; return the exit code."""
+    """Run one experiment, the report, or every experiment and the report; return the code."""
     args = parse_arguments(argv)
     if args.limit is not None and args.limit < 1:
         print(f'dual_arm_experiment: --limit must be >= 1, got {args.limit}', file=sys.stderr)
@@ -51,25 +53,38 @@ def main(argv=None):
         print(f'dual_arm_experiment: --repeats must be >= 1, got {args.repeats}',
               file=sys.stderr)
         return 2
+    for name in {'all': EXPERIMENTS, 'report': ()}.get(args.name, (args.name,)):
+        out = args.results / name if args.name == 'all' else args.out or args.results / name
+        code = run_experiment(name, out, args)
+        if code != 0:
+            return code
+    if args.name not in ('report', 'all'):
+        return 0
+    from dual_arm_control.evaluation.report import write_report
+    out = args.out or Path('docs/results.md')
     try:
-        if args.name == 'report':
-            from dual_arm_control.evaluation.report import write_report
-            out = args.out or Path('docs/results.md')
-            write_report(args.results, out)
-            print(f'dual_arm_experiment: wrote {out}')
-            return 0
-        out = args.out or Path('docs/results') / args.name
-        kwargs = {'limit': args.limit}
-        if args.name == 'place_vs_toss':
-            kwargs['repeats'] = args.repeats
-        results = RUNNERS[args.name](out, **kwargs)
+        write_report(args.results, out)
+    except OSError as error:
+        print(f'dual_arm_experiment: report failed: {error}', file=sys.stderr)
+        return 1
+    print(f'dual_arm_experiment: wrote {out}')
+    return 0
+
+
+def run_experiment(name, out, args):
+    """Run experiment name into the directory out; return the exit code."""
+    kwargs = {'limit': args.limit}
+    if name == 'place_vs_toss':
+        kwargs['repeats'] = args.repeats
+    try:
+        results = RUNNERS[name](out, **kwargs)
     except ConfigError as error:
         print(f'dual_arm_experiment: {error}', file=sys.stderr)
         return 2
     except (DualArmControlError, OSError) as error:
-        print(f'dual_arm_experiment: {args.name} failed: {error}', file=sys.stderr)
+        print(f'dual_arm_experiment: {name} failed: {error}', file=sys.stderr)
         return 1
-    print(f'dual_arm_experiment: {args.name} done in {results["wall_time"]:.1f} s, results in '
+    print(f'dual_arm_experiment: {name} done in {results["wall_time"]:.1f} s, results in '
           f'{out / RESULTS_FILE}')
     return 0
 
