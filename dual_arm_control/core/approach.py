@@ -42,7 +42,11 @@ def first_touch_gaps(faces, p_tools, R_tools, pad_half_length, pad_half_width):
         corners = p_tools[index] + outline @ np.asarray(R_tools[index]).T
         corner_gaps = (face.centre - corners) @ face.normal
         in_face = (corners - face.centre) @ face.axes.T
-        gap = pad_overlap_gap(in_face, corner_gaps, face.half_extents)
+        if np.all(np.abs(in_face) <= face.half_extents):
+            gaps[index] = float(np.min(corner_gaps))
+            continue
+        gap = pad_overlap_gap(in_face.tolist(), corner_gaps.tolist(),
+                              face.half_extents.tolist())
         gaps[index] = float(np.min(corner_gaps)) if gap is None else gap
     return gaps
 
@@ -51,27 +55,30 @@ def pad_overlap_gap(outline, gaps, half_extents):
     """
     Return the smallest gap [m] over the part of a pad's outline above its face, or None.
 
-    outline (n, 2) [m]: the pad's corners in order, in the face's axes from its centre; gaps
-    (n,) [m]: each corner's gap to the face plane, which varies linearly over the flat pad.
-    The outline is clipped to the face rectangle |u| <= half_extents (Sutherland-Hodgman,
-    the gap carried along) and the smallest gap of the clipped polygon's vertices returned;
-    None when the pad lies wholly beside the face.
+    outline: the pad's corners (u, v) in order [m], in the face's axes from its centre; gaps:
+    each corner's gap to the face plane [m], which varies linearly over the flat pad. The
+    outline is clipped to the face rectangle |u| <= half_extents (Sutherland-Hodgman, the gap
+    carried along) and the smallest gap of the clipped polygon's vertices returned; None when
+    the pad lies wholly beside the face. Plain floats: this runs on every reach tick.
     """
-    polygon = [np.array([u, v, gap]) for (u, v), gap in zip(outline, gaps)]
+    polygon = [(u, v, gap) for (u, v), gap in zip(outline, gaps)]
     for axis, sign in ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)):
+        limit = half_extents[axis]
         clipped = []
-        for start, end in zip(polygon, polygon[1:] + polygon[:1]):
-            inside_start = half_extents[axis] - sign * start[axis]
-            inside_end = half_extents[axis] - sign * end[axis]
-            if inside_start >= 0.0:
-                clipped.append(start)
+        start = polygon[-1]
+        inside_start = limit - sign * start[axis]
+        for end in polygon:
+            inside_end = limit - sign * end[axis]
             if (inside_start >= 0.0) != (inside_end >= 0.0):
                 fraction = inside_start / (inside_start - inside_end)
-                clipped.append(start + fraction * (end - start))
+                clipped.append(tuple(a + fraction * (b - a) for a, b in zip(start, end)))
+            if inside_end >= 0.0:
+                clipped.append(end)
+            start, inside_start = end, inside_end
         polygon = clipped
         if not polygon:
             return None
-    return float(min(vertex[2] for vertex in polygon))
+    return min(vertex[2] for vertex in polygon)
 
 
 def synchronised_arrival(velocity, gaps, normals, schedule):
