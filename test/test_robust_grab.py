@@ -402,11 +402,15 @@ def test_failure_modes_count_each_trials_first_reason():
     far_targets = ((1.1, 1.4), (1.2, 1.5))
     reasons += [f'UnreachableTargetError: landing target [{x}, -0.2, 0.25] m cannot be reached '
                 f'from the release region: it needs {speed} m/s' for x, speed in far_targets]
+    reasons += [f'refused before the reach: grasp out of reach: {arm} arm misses its grasp '
+                f'frame by {miss} mm, 0 deg within its joint limits (margin 0 rad)'
+                for arm, miss in (('left', 46), ('right', 68))]
     modes = dict(failure_modes([{'reason': reason} for reason in reasons]))
     assert modes == {'contact_time_gap over its limit': 2, 'arm collisions': 1,
                      'no reach: the arms stayed at standby': 1,
+                     'refused before the reach: grasp out of reach': 2,
                      'UnreachableTargetError: landing target m cannot be reached from the '
-                     'release region: it needs m/s': 2}
+                     'release region': 2}
 
 
 def test_a_heavy_box_is_tossed_level_and_lands_on_target(cell):

@@ -74,10 +74,16 @@ def statistics_table(metrics, keys, stats):
 
 
 def failure_modes(failures):
-    """Return [(mode, count)], most frequent first: a failure's mode is its first reason."""
+    """
+    Return [(mode, count)], most frequent first: a failure's mode is its first reason.
+
+    A reason's mode is its first two clauses (split at ': '; a refusal's which arm and how
+    far are a third) without the words that hold numbers.
+    """
     counts = {}
     for item in failures:
-        first = str(item.get('reason', '')).split(';')[0].split(' (')[0].strip()
+        first = str(item.get('reason', '')).split(';')[0].split(' (')[0]
+        first = ': '.join(first.split(': ')[:2]).strip()
         words = first.split()
         if ' > ' in first:
             mode = f'{words[0]} over its limit'
