@@ -42,11 +42,9 @@ def first_touch_gaps(faces, p_tools, R_tools, pad_half_length, pad_half_width):
         corners = p_tools[index] + outline @ np.asarray(R_tools[index]).T
         corner_gaps = (face.centre - corners) @ face.normal
         in_face = (corners - face.centre) @ face.axes.T
-        if np.all(np.abs(in_face) <= face.half_extents):
-            gaps[index] = float(np.min(corner_gaps))
-            continue
-        gap = pad_overlap_gap(in_face.tolist(), corner_gaps.tolist(),
-                              face.half_extents.tolist())
+        over_face = bool(np.all(np.abs(in_face) <= face.half_extents))
+        gap = None if over_face else pad_overlap_gap(in_face.tolist(), corner_gaps.tolist(),
+                                                     face.half_extents.tolist())
         gaps[index] = float(np.min(corner_gaps)) if gap is None else gap
     return gaps
 

@@ -311,7 +311,7 @@ class DualArmMotionGenerator:
         velocity = arm_velocities_near_object(field_output.velocity, speed, distance,
                                               config.speed)
         if config.impact.synchronisation_distance > 0.0:
-            normals = np.array([frames[arm].normal for arm in ARMS])
+            normals = np.array([face.normal for face in faces])
             pad, schedule = config.arrival_synchroniser()
             gaps = first_touch_gaps(faces, p_tools, R_tools, *pad)
             velocity = synchronised_arrival(velocity, gaps, normals, schedule)
