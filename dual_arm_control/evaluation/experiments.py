@@ -53,18 +53,17 @@ def main(argv=None):
         print(f'dual_arm_experiment: --repeats must be >= 1, got {args.repeats}',
               file=sys.stderr)
         return 2
-    for name in {'all': EXPERIMENTS, 'report': ()}.get(args.name, (args.name,)):
-        out = args.results / name if args.name == 'all' else args.out or args.results / name
-        code = run_experiment(name, out, args)
+    if args.name not in ('report', 'all'):
+        return run_experiment(args.name, args.out or args.results / args.name, args)
+    for name in EXPERIMENTS if args.name == 'all' else ():
+        code = run_experiment(name, args.results / name, args)
         if code != 0:
             return code
-    if args.name not in ('report', 'all'):
-        return 0
     from dual_arm_control.evaluation.report import write_report
     out = args.out or Path('docs/results.md')
     try:
         write_report(args.results, out)
-    except OSError as error:
+    except (DualArmControlError, OSError) as error:
         print(f'dual_arm_experiment: report failed: {error}', file=sys.stderr)
         return 1
     print(f'dual_arm_experiment: wrote {out}')
