@@ -104,3 +104,33 @@ def test_a_hold_starts_where_the_grasp_plan_puts_the_centre_not_at_a_lagging_est
     p, _ = estimate.update(np.array([0.4, 0.0, 0.3]), np.eye(3), lagging, np.zeros(3), DT, TAU,
                            planned_offset=planned)
     assert p == pytest.approx(np.array([0.4, 0.0, 0.3]) + planned)
+
+
+def about_z(angle):
+    """Return the rotation (3, 3) by angle [rad] about z."""
+    return np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0],
+                     [0.0, 0.0, 1.0]])
+
+
+def test_pads_rocking_in_opposite_senses_leave_the_grip_turning_with_the_box():
+    """
+    Both pads rock 15 deg on their faces' edges in opposite senses while the box turns by 10 deg.
+
+    The grip's rotation is the box's turn to 1e-9 (the mean of +15 and -15 deg), and the centre
+    of a box held 9 cm off it stays within 0.1 mm; a single pad's frame would put it
+    9 cm x 2 sin(7.5 deg) = 2.3 cm away.
+    """
+    estimate = HeldObjectEstimate()
+    R_left, R_right = about_z(0.3) @ np.diag([1.0, -1.0, -1.0]), np.diag([1.0, 1.0, 1.0])
+    lever = np.array([-0.09, 0.0, 0.01])
+    for tick in range(40):
+        box_turn = about_z(np.radians(10.0) * tick / 39)
+        rock = np.radians(15.0) * tick / 39
+        grip = estimate.grip_rotation(box_turn @ about_z(rock) @ R_left,
+                                      box_turn @ about_z(-rock) @ R_right)
+        p, _ = estimate.update(np.zeros(3), grip, box_turn @ lever, np.zeros(3), DT, TAU,
+                               planned_offset=lever if tick == 0 else None)
+    assert grip == pytest.approx(box_turn @ R_left, abs=1e-9)
+    assert np.linalg.norm(p - box_turn @ lever) < 1e-4
+    single_pad = box_turn @ about_z(rock) @ R_left @ R_left.T @ lever
+    assert np.linalg.norm(single_pad - box_turn @ lever) > 0.02

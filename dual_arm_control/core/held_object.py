@@ -9,10 +9,12 @@ toss's speed loop chased them, the release rule read them, and over the catalogu
 boxes slipped more than 1 cm in the pads (9 once read from the pads).
 
 HeldObjectEstimate is a complementary filter. The box's centre is the pads' midpoint plus an
-offset held in a pad's frame, so that it turns with the grasp (a shifted grasp holds the box
-up to 10 cm off its centre). The offset starts where the grasp plan puts the centre (the
-tracker lags after the impact: 7 mm in one trial) and follows the tracker's estimate slowly
-(time constant; a slip of the box in the pads shows up within it). The velocity is that
+offset held in the grip's frame (the mean of both pads' frames, grip_rotation), so that it
+turns with the grasp (a shifted grasp holds the box up to 10 cm off its centre); one pad's
+frame would turn the offset with that pad as it rocks on an edge of its face. The offset
+starts where the grasp plan puts the centre (the tracker lags after the impact: 7 mm in one
+trial) and follows the tracker's estimate slowly (time constant; a slip of the box in the
+pads shows up within it). The velocity is that
 point's as the pads carry it: differenced over the tick with the offset held (its slow
 correction is no motion of the box) and carried half a tick forward on the last two
 differences (a difference is the mean velocity over the tick, half a tick old: 0.025 m/s at
@@ -21,6 +23,7 @@ the toss's 10 m/s^2).
 
 import math
 
+from dual_arm_control.core.geometry import slerp_rotation
 import numpy as np
 
 
@@ -35,15 +38,31 @@ class HeldObjectEstimate:
         """Forget the hold (the pads let go)."""
         self._offset = None
         self._midpoint = None
-        self._R_world_pad = None
+        self._R_world_grip = None
         self._velocity = None
+        self._R_right_left = None
 
-    def update(self, p_world_midpoint, R_world_pad, p_world_estimate, v_world_estimate, dt,
+    def grip_rotation(self, R_world_left, R_world_right):
+        """
+        Return the rotation (3, 3) of the pair of pads: the geodesic mean of both pads' frames.
+
+        Each pad's frame is taken as it sat when the hold began (the right one turned onto the
+        left's by their relative rotation then), and the two are averaged: a pad rocking on an
+        edge of its face turns its own frame, not the box (carried 20 deg yawed, the pads
+        turned 13 and 16 deg in opposite senses against the box, their mean 1.5 deg).
+        """
+        R_world_left = np.asarray(R_world_left, dtype=float)
+        R_world_right = np.asarray(R_world_right, dtype=float)
+        if self._R_right_left is None:
+            self._R_right_left = R_world_right.T @ R_world_left
+        return slerp_rotation(R_world_left, R_world_right @ self._R_right_left, 0.5)
+
+    def update(self, p_world_midpoint, R_world_grip, p_world_estimate, v_world_estimate, dt,
                time_constant, planned_offset=None):
         """
         Return the held box's (p (3,) [m], v (3,) [m/s]) for one tick of dt [s].
 
-        p_world_midpoint: the pads' midpoint; R_world_pad (3, 3): one pad's rotation;
+        p_world_midpoint: the pads' midpoint; R_world_grip (3, 3): the grip's rotation;
         p/v_world_estimate: the tracker's estimate, which the offset follows with
         time_constant [s] (> 0); planned_offset (3,) [m]: where the grasp
         plan puts the box's centre from the pads' midpoint, world frame (default: the
@@ -51,21 +70,21 @@ class HeldObjectEstimate:
         velocity.
         """
         midpoint = np.asarray(p_world_midpoint, dtype=float)
-        R_world_pad = np.asarray(R_world_pad, dtype=float)
+        R_world_grip = np.asarray(R_world_grip, dtype=float)
         p_world_estimate = np.asarray(p_world_estimate, dtype=float)
-        measured_offset = R_world_pad.T @ (p_world_estimate - midpoint)
+        measured_offset = R_world_grip.T @ (p_world_estimate - midpoint)
         if self._offset is None or dt <= 0.0:
             self._offset = (measured_offset if planned_offset is None
-                            else R_world_pad.T @ np.asarray(planned_offset, dtype=float))
-            self._midpoint, self._R_world_pad = midpoint, R_world_pad
-            return midpoint + R_world_pad @ self._offset, np.asarray(v_world_estimate,
-                                                                     dtype=float)
-        mean_velocity = (midpoint - self._midpoint + (R_world_pad - self._R_world_pad)
+                            else R_world_grip.T @ np.asarray(planned_offset, dtype=float))
+            self._midpoint, self._R_world_grip = midpoint, R_world_grip
+            return (midpoint + R_world_grip @ self._offset,
+                    np.asarray(v_world_estimate, dtype=float))
+        mean_velocity = (midpoint - self._midpoint + (R_world_grip - self._R_world_grip)
                          @ self._offset) / dt
         velocity = mean_velocity if self._velocity is None else (
             1.5 * mean_velocity - 0.5 * self._velocity)
         self._velocity = mean_velocity
         gain = -math.expm1(-dt / time_constant)
         self._offset = self._offset + gain * (measured_offset - self._offset)
-        self._midpoint, self._R_world_pad = midpoint, R_world_pad
-        return midpoint + R_world_pad @ self._offset, velocity
+        self._midpoint, self._R_world_grip = midpoint, R_world_grip
+        return midpoint + R_world_grip @ self._offset, velocity

@@ -130,7 +130,8 @@ class DualArmMotionGenerator:
                 and config.held_object_time_constant > 0.0)
         if held:
             p_object, v_object = self._held_object.update(
-                p_tools.mean(axis=0), R_tools[0], p_object, v_object, dt,
+                p_tools.mean(axis=0), self._held_object.grip_rotation(*R_tools), p_object,
+                v_object, dt,
                 config.held_object_time_constant, planned_offset=-R_object @ self._grasp_offset)
         else:
             self._held_object.reset()
