@@ -14,11 +14,10 @@ turns with the grasp (a shifted grasp holds the box up to 10 cm off its centre);
 frame would turn the offset with that pad as it rocks on an edge of its face. The offset
 starts where the grasp plan puts the centre (the tracker lags after the impact: 7 mm in one
 trial) and follows the tracker's estimate slowly (time constant; a slip of the box in the
-pads shows up within it). The velocity is that
-point's as the pads carry it: differenced over the tick with the offset held (its slow
-correction is no motion of the box) and carried half a tick forward on the last two
-differences (a difference is the mean velocity over the tick, half a tick old: 0.025 m/s at
-the toss's 10 m/s^2).
+pads shows up within it). The velocity is that point's as the pads carry it: differenced
+over the tick with the offset held (its slow correction is no motion of the box) and carried
+half a tick forward on the last two differences (a difference is the mean velocity over the
+tick, half a tick old: 0.025 m/s at the toss's 10 m/s^2).
 """
 
 import math

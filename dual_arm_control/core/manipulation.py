@@ -67,7 +67,8 @@ class TossConfig:
         'offset reaches the release line with no sideways velocity); at most lateral_gain turns '
         'the rise off. A box thrown 49 deg sideways joins a release line that starts 28 cm '
         'beside it: at lateral_gain alone it left 1.4 cm off the line and 7.7 deg off the '
-        'planned direction (toss_to_target_random seed 51, trial 96).',
+        'planned direction, with the rise 1.6 deg (toss_to_target_random seed 51, trial 96; '
+        '195 of 200 succeed against 192).',
         unit='1/s', low=0, high=200.0)
     speed_integral_gain: float = setting(
         40.0, "Gain of the outer loop on the carried object's speed shortfall "
