@@ -163,9 +163,7 @@ def release_direction_error_after_joining(config, offset):
     while (x - geometry.release_position) @ e1 < 0.0:
         velocity = toss_velocity(x, geometry).velocity
         x = x + 0.0005 * velocity
-    planned = geometry.release_velocity
-    return math.degrees(math.acos(velocity @ planned / np.linalg.norm(velocity)
-                                  / np.linalg.norm(planned)))
+    return angle_deg(velocity, geometry.release_velocity)
 
 
 def test_a_box_off_the_release_line_leaves_along_it():
