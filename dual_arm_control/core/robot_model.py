@@ -22,8 +22,6 @@ SENSOR_FRAME = 'ft_sensor'
 SHOULDER_JOINT = 2
 ELBOW_JOINT = 4
 WRIST_JOINT = 6
-# Strictly lower triangle of a joint-space matrix, mirrored from pinocchio's upper one.
-_LOWER = np.tril_indices(JOINTS_PER_ARM, -1)
 
 
 class ArmModel:
@@ -197,11 +195,13 @@ class ArmModel:
 
     def mass_matrix(self, q):
         """Return the (7, 7) joint-space inertia [kg m^2], armature included, symmetric."""
-        return _symmetric(pin.crba(self.model, self.data, self._q(q)))
+        upper = pin.crba(self.model, self.data, self._q(q))
+        return np.triu(upper) + np.triu(upper, 1).T
 
     def inverse_mass_matrix(self, q):
         """Return the (7, 7) inverse joint-space inertia [1/(kg m^2)], armature included."""
-        return _symmetric(pin.computeMinverse(self.model, self.data, self._q(q)))
+        upper = pin.computeMinverse(self.model, self.data, self._q(q))
+        return np.triu(upper) + np.triu(upper, 1).T
 
     def gravity_torque(self, q):
         """Return the (7,) joint torques [N m] that balance gravity at q."""
@@ -216,10 +216,3 @@ class ArmModel:
         dq = self._dq(dq)
         tau = finite_array('tau', tau, (JOINTS_PER_ARM,))
         return pin.aba(self.model, self.data, self._q(q), dq, tau - self._damping * dq).copy()
-
-
-def _symmetric(upper):
-    """Return a copy of a (7, 7) matrix whose upper triangle pinocchio filled, made symmetric."""
-    matrix = upper.copy()
-    matrix[_LOWER] = upper.T[_LOWER]
-    return matrix
