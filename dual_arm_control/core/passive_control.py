@@ -5,20 +5,18 @@ Per tick, with the tool twist [v; w] = J(q) dq (world-aligned at the tool point)
 
     F = -D(v_d) (v - v_d)                  D = Q diag(lambda0, lambda1, lambda1) Q^T
     M = -d_w (w - w_d) + K_R log(R_d R^T)  orientation damping and stiffness
-    tau = J^T ([F; M] + w_c) + g(q) + N^T tau_null,   tau_null = -K_n (q - q_n) - d_n N dq
+    tau = J^T ([F; M] + w_c) + g(q) + N tau_null,   tau_null = -K_n (q - q_n) - d_n dq
 
 w_c is the contact wrench the QP assigns to this pad (applied by the pad on the object), so the
 robot pushes with +w_c. g(q) is pinocchio's gravity torque of arm and tool.
 
-Null space: the dynamically consistent projector N = I - Jbar J, Jbar = M^-1 J^T Lambda,
-Lambda = (J M^-1 J^T + eps^2 I)^-1 (Khatib 1987), applied to torques as N^T: a null-space
-torque then gives the tool no acceleration, where the symmetric kinematic projector
-I - J^T (J J^T)^-1 J only gives it no static wrench: with that one, the posture torques of a
-fast carry (the tracked posture moves up to 5 rad/s) twisted the pads on the box's faces, and
-over catalogue_random seed 5151 (300 trials) the largest slip was 21.7 mm, p95 6.3 mm (7.5 and
-5.9 mm with this one). The joint damping acts on the null-space velocity, -d_n N^T N dq,
-which is dissipative (dq^T N^T N dq >= 0) where -d_n N^T dq need not be.
-The posture spring through N^T is not a potential force; the passivity guarantee covers the
+Null space: the symmetric (kinematic) projector N = I - J^T (J J^T + eps^2 I)^-1 J. Being
+symmetric positive semi-definite it keeps the projected joint damping -d_n N dq dissipative
+(d_n is a scalar for that reason), which the dynamically consistent projector (not
+symmetric) does not; the price is that null-space torques are not inertially decoupled from
+the tool, so they perturb the tool only transiently (J N tau ~ 0: no tool wrench, the tool
+equilibrium is unchanged).
+The posture spring through N is not a potential force; the passivity guarantee covers the
 task law, the orientation spring and all damping terms.
 
 Saturation scales the non-gravity part of tau by one factor s in (0, 1] until every joint is
@@ -115,9 +113,8 @@ class PassiveControllerConfig:
         'that can hold the target, not into a joint limit on the way.',
         unit='rad', low=0, high=1.0)
     projector_damping: float = setting(
-        1e-3, "eps of the null-space projector: eps^2 I is added to the tool's inverse inertia "
-        'J M^-1 J^T before it is inverted, so the projector stays defined at a singularity.',
-        unit='(kg, kg m^2)^-1/2', low=0, high=1.0, low_open=True)
+        1e-3, 'eps of the damped pseudo-inverse in the null-space projector.',
+        unit='m, rad', low=0, high=1.0, low_open=True)
     joint_speed_onset: float = setting(
         0.8, "Fraction of a joint's speed limit (URDF) above which joint_speed_brake_torque "
         'brakes it.', low=0.1, high=1.0)
@@ -264,8 +261,8 @@ class PassiveController:
     """
     Passive-DS torque controller of one arm, state = null-space posture and last gravity torque.
 
-    model: an object with the ArmModel API (tool_pose_and_jacobian, gravity_torque,
-    inverse_mass_matrix, torque_limits); q_null: (7,) posture of the null-space spring [rad].
+    model: an object with the ArmModel API (tool_pose, tool_jacobian, gravity_torque,
+    torque_limits); q_null: (7,) posture of the null-space spring [rad].
     """
 
     def __init__(self, model, q_null, config=None):
@@ -326,21 +323,17 @@ class PassiveController:
 
     def null_space_torque(self, jacobian, q, dq):
         """
-        Return N^T tau_null (7,) [N m]: posture, damping and elbow-lift torques off the tool.
+        Return N tau_null (7,) [N m]: posture and elbow-lift torques projected off the tool.
 
-        Dynamically consistent (module docstring): they give the tool no acceleration. The
-        elbow lift acts once the arm has touched (start_episode turns it off again).
+        The elbow lift acts once the arm has touched (start_episode turns it off again).
         """
-        inverse_inertia = self.model.inverse_mass_matrix(q)
-        tool_map = jacobian @ inverse_inertia
-        tool_inverse_inertia = tool_map @ jacobian.T + self._regulariser
-        null_velocity = dq - tool_map.T @ solve(tool_inverse_inertia, jacobian @ dq)
         limit = self.config.null_space_error_limit
         error = np.minimum(np.maximum(q - self.q_null, -limit), limit)
-        torque = -self._null_stiffness * error - self._null_damping * null_velocity
+        torque = -self._null_stiffness * error - self._null_damping * dq
         if self.touched and self.config.elbow_lift_force > 0.0:
             torque += self.model.elbow_jacobian(q)[2] * self.config.elbow_lift_force
-        return torque - jacobian.T @ solve(tool_inverse_inertia, tool_map @ torque)
+        return torque - jacobian.T @ solve(
+            jacobian @ jacobian.T + self._regulariser, jacobian @ torque)
 
     def torque_command(self, q, dq, v_world_desired, w_world_desired, R_world_desired,
                        contact_wrench=None):

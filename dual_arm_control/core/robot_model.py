@@ -198,11 +198,6 @@ class ArmModel:
         upper = pin.crba(self.model, self.data, self._q(q))
         return np.triu(upper) + np.triu(upper, 1).T
 
-    def inverse_mass_matrix(self, q):
-        """Return the (7, 7) inverse joint-space inertia [1/(kg m^2)], armature included."""
-        upper = pin.computeMinverse(self.model, self.data, self._q(q))
-        return np.triu(upper) + np.triu(upper, 1).T
-
     def gravity_torque(self, q):
         """Return the (7,) joint torques [N m] that balance gravity at q."""
         return pin.computeGeneralizedGravity(self.model, self.data, self._q(q)).copy()
