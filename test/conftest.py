@@ -1,4 +1,4 @@
-"""Shared test fixtures: an isolated ROS environment per test and the source root."""
+"""Shared test fixtures: an isolated ROS environment per test, the source root, a yaw rotation."""
 
 import os
 from pathlib import Path
@@ -6,6 +6,7 @@ import random
 import sys
 
 import domain_coordinator
+from dual_arm_control.core.geometry import rpy_to_matrix
 import pytest
 
 SOURCE_ROOT = Path(__file__).resolve().parent.parent
@@ -16,6 +17,11 @@ os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
 # Tests kill processes (SIGKILL) on purpose; Fast DDS shared-memory segments they leave behind
 # made later discovery in the same session intermittently fail. UDP loopback has no such state.
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
+
+
+def yaw_rotation(yaw):
+    """Return the rotation (3, 3) by yaw [rad] about the world z axis."""
+    return rpy_to_matrix((0.0, 0.0, yaw))
 
 
 @pytest.fixture

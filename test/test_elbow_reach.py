@@ -2,6 +2,7 @@
 
 import math
 
+from conftest import yaw_rotation
 from dual_arm_control.core.elbow_reach import (clearest_direction, elbow_clear_direction,
                                                reachable_release_rotation, run_in_elbow_margin,
                                                wrist_offset, wrist_overreach)
@@ -37,11 +38,6 @@ RUN_IN = 0.2
 def models():
     cell = load_cell()
     return {arm: arm_model(arm, cell) for arm in ARMS}
-
-
-def yaw_rotation(yaw):
-    return np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
-                     [0.0, 0.0, 1.0]])
 
 
 def sampled_margin(reach, frame, direction, run_in=RUN_IN):

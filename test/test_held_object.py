@@ -1,6 +1,6 @@
 """The held box read from the pads' kinematics, its offset following the tracker slowly."""
 
-from dual_arm_control.core.geometry import rpy_to_matrix
+from conftest import yaw_rotation
 from dual_arm_control.core.held_object import HeldObjectEstimate
 import numpy as np
 import pytest
@@ -21,11 +21,6 @@ def run(estimate, ticks, noise, offset=lambda tick: TRUE_OFFSET):
                                PAD_VELOCITY + 0.3, DT, TAU)
         rows.append((p, v, true_position))
     return rows
-
-
-def about_z(angle):
-    """Return the rotation (3, 3) by angle [rad] about z."""
-    return rpy_to_matrix((0.0, 0.0, angle))
 
 
 def test_the_first_tick_of_a_hold_is_the_trackers_estimate():
@@ -83,7 +78,7 @@ def test_an_offset_grasp_turning_with_the_pads_moves_the_centre_around_them():
     estimate = HeldObjectEstimate()
     rate, lever = 0.5, np.array([0.08, 0.0, 0.0])
     for tick in range(40):
-        R = about_z(rate * tick * DT)
+        R = yaw_rotation(rate * tick * DT)
         p, v = estimate.update(np.zeros(3), R, R @ lever, np.zeros(3), DT, TAU)
     assert p == pytest.approx(R @ lever, abs=1e-9)
     assert v == pytest.approx(np.cross([0.0, 0.0, rate], R @ lever), abs=2e-3)
@@ -119,16 +114,16 @@ def test_pads_rocking_in_opposite_senses_leave_the_grip_turning_with_the_box():
     9 cm x 2 sin(7.5 deg) = 2.3 cm away.
     """
     estimate = HeldObjectEstimate()
-    R_left, R_right = about_z(0.3) @ np.diag([1.0, -1.0, -1.0]), np.diag([1.0, 1.0, 1.0])
+    R_left, R_right = yaw_rotation(0.3) @ np.diag([1.0, -1.0, -1.0]), np.diag([1.0, 1.0, 1.0])
     lever = np.array([-0.09, 0.0, 0.01])
     for tick in range(40):
-        box_turn = about_z(np.radians(10.0) * tick / 39)
+        box_turn = yaw_rotation(np.radians(10.0) * tick / 39)
         rock = np.radians(15.0) * tick / 39
-        grip = estimate.grip_rotation(box_turn @ about_z(rock) @ R_left,
-                                      box_turn @ about_z(-rock) @ R_right)
+        grip = estimate.grip_rotation(box_turn @ yaw_rotation(rock) @ R_left,
+                                      box_turn @ yaw_rotation(-rock) @ R_right)
         p, _ = estimate.update(np.zeros(3), grip, box_turn @ lever, np.zeros(3), DT, TAU,
                                planned_offset=lever if tick == 0 else None)
     assert grip == pytest.approx(box_turn @ R_left, abs=1e-9)
     assert np.linalg.norm(p - box_turn @ lever) < 1e-4
-    single_pad = box_turn @ about_z(rock) @ lever
+    single_pad = box_turn @ yaw_rotation(rock) @ lever
     assert np.linalg.norm(single_pad - box_turn @ lever) > 0.02

@@ -2,6 +2,7 @@
 
 import math
 
+from conftest import yaw_rotation
 from dual_arm_control.core.approach import rolled_impact_config
 from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
@@ -35,11 +36,6 @@ def cell():
 @pytest.fixture(scope='module')
 def models(cell):
     return {arm: arm_model(arm, cell) for arm in ARMS}
-
-
-def yaw_rotation(yaw):
-    return np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
-                     [0.0, 0.0, 1.0]])
 
 
 def test_a_rolled_pad_covers_its_width_along_the_face():

@@ -10,6 +10,7 @@ from dataclasses import replace
 import json
 import math
 
+from conftest import yaw_rotation
 from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import matrix_to_rpy, quat_xyzw_to_matrix, rotation_log
@@ -40,11 +41,6 @@ import yaml
 @pytest.fixture(scope='module')
 def cell():
     return load_cell()
-
-
-def yaw_rotation(yaw):
-    return np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0],
-                     [0.0, 0.0, 1.0]])
 
 
 def test_object_types_are_drawn_from_the_catalogue(cell):
