@@ -12,7 +12,8 @@ from dual_arm_control.core.manipulation import (
     LiftConfig, manipulation_attractor, object_angular_velocity, object_orientation_ds,
     release_rotation, release_velocity, toss_attractor, toss_geometry, toss_target_fields,
     toss_velocity, TossConfig)
-from dual_arm_control.core.place import pallet_floor, place_target, place_velocity, PlaceConfig
+from dual_arm_control.core.place import (pallet_floor, place_rotation, place_target,
+                                         place_velocity, PlaceConfig)
 from dual_arm_control.core.speed_shaping import boosted_velocity
 from dual_arm_control.description.cell import load_cell
 import numpy as np
@@ -135,6 +136,27 @@ def test_a_given_release_orientation_is_turned_to_at_its_own_rate():
     held = replace(given, orientation='hold')
     assert object_orientation_ds(given, 3.0).convergence_rates == (20.0,) * 3
     assert object_orientation_ds(held, 3.0).convergence_rates == (5.0,) * 3
+
+
+def test_a_box_to_be_set_down_turns_to_the_place_yaw_no_faster_than_the_place_allows():
+    """The place's yaw is turned to at the carry rate, the angular speed capped by the place."""
+    toss = TossConfig(orientation='given', orientation_rate=12.0, release_orientation_rate=20.0)
+    place = PlaceConfig(yaw_deg=0.0, max_angular_speed=1.0)
+    dynamics = object_orientation_ds(toss, 3.0, place)
+    assert dynamics.convergence_rates == (12.0,) * 3
+    assert object_orientation_ds(toss, 0.5, place).max_angular_speed == 0.5
+    R_place = place_rotation(place)
+    R_object = rpy_to_matrix((0.0, 0.0, math.radians(25.0)))
+    omega = object_angular_velocity(R_object, R_place, dynamics)
+    np.testing.assert_allclose(omega, [0.0, 0.0, -1.0], atol=1e-12)
+    unbounded = object_angular_velocity(R_object, R_place, object_orientation_ds(toss, 3.0))
+    assert np.linalg.norm(unbounded) == pytest.approx(3.0)
+    dt = 0.005
+    for _ in range(200):  # 1 s of a carry, which lasts 1.15-2.1 s
+        R_object = rotation_exp(object_angular_velocity(R_object, R_place, dynamics) * dt) \
+            @ R_object
+    # 0.44 s at 1 rad/s, then exp(-12 t) over the rest: well below 0.1 deg.
+    assert np.linalg.norm(rotation_log(R_place @ R_object.T)) < math.radians(0.1)
 
 
 def test_toss_attractor_and_target_fields_eq_9():

@@ -546,9 +546,10 @@ def test_a_yawed_box_is_put_down_at_the_place_yaw(cell, place_yaw_deg):
     """
     The paper cube picked up yawed 20 deg is turned while carried and put down at place.yaw_deg.
 
-    Measured: 5.6 deg for 0 and 8.5 deg for 10. The carry turns it to within 2 deg; the last
-    few degrees come back while the arms, near the end of their reach at the place, set it
-    down. Left unturned it would stay near 20 deg, outside the 7 deg allowed here.
+    Measured: 1.7 deg for 0 and 11.1 deg for 10 (5.6 and 8.5 while the box turned at up to
+    3 rad/s and the pads rocked on its faces); a degree or two come back while the arms, near
+    the end of their reach at the place, set it down. Left unturned it would stay near 20 deg,
+    outside the 4 deg allowed here.
     """
     scenario = load_scenario('paper_place', cell=cell)
     yawed = replace(scenario, object=replace(scenario.object, yaw=math.radians(20.0)))
@@ -557,7 +558,7 @@ def test_a_yawed_box_is_put_down_at_the_place_yaw(cell, place_yaw_deg):
     metrics = episode_metrics(yawed, data, cell)
     final_yaw = math.degrees(matrix_to_rpy(quat_xyzw_to_matrix(data['object_quat_xyzw'][-1]))[2])
     assert metrics['success']
-    assert abs(final_yaw - place_yaw_deg) <= 7.0
+    assert abs(final_yaw - place_yaw_deg) <= 4.0
 
 
 def test_a_box_set_down_next_to_the_pallet_clears_its_edge(cell):

@@ -193,13 +193,18 @@ def level_rotation(R_world_object):
     return rpy_to_matrix((0.0, 0.0, matrix_to_rpy(R_world_object)[2]))
 
 
-def object_orientation_ds(config, max_angular_speed):
+def object_orientation_ds(config, max_angular_speed, place=None):
     """
     Return the OrientationDsConfig turning the carried object.
 
     At TossConfig.release_orientation_rate toward a given release orientation, else at
-    orientation_rate.
+    orientation_rate. place: the PlaceConfig of a box to be set down, which turns to the
+    place's yaw at orientation_rate and at most place.max_angular_speed [rad/s].
     """
+    if place is not None:
+        return OrientationDsConfig(
+            convergence_rates=(config.orientation_rate,) * 3,
+            max_angular_speed=min(max_angular_speed, place.max_angular_speed))
     rate = (config.release_orientation_rate if config.orientation == 'given'
             else config.orientation_rate)
     return OrientationDsConfig(convergence_rates=(rate,) * 3,

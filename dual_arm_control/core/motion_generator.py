@@ -109,7 +109,8 @@ class DualArmMotionGenerator:
         self._release_rotation = release_rotation(config.toss)
         self._place_rotation = place_rotation(config.place)
         self._object_orientation_ds = object_orientation_ds(
-            config.toss, config.orientation.max_angular_speed)
+            config.toss, config.orientation.max_angular_speed,
+            config.place if config.task is Task.PICK_AND_PLACE else None)
         self._standby_positions = np.asarray(config.standby_positions, dtype=float)
         self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
 

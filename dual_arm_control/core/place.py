@@ -53,6 +53,14 @@ class PlaceConfig:
         'off is placed square, where the arms also reach it best (catalogue_random_place, '
         'seed 12, 60 trials: slip p95 1.1 cm against 2.6 cm left free).',
         unit='deg', low=-180.0, high=180.0)
+    max_angular_speed: float = setting(
+        1.0, "Cap of the carried box's angular speed while it turns to yaw_deg (at most the "
+        "orientation DS's max_angular_speed). At that 3 rad/s a box picked up 17-25 deg off "
+        'turned within about 0.15 s of the grasp, faster than the arms turn their pads: they '
+        'rocked on the faces by up to 21 deg and slid (catalogue_random_place, seed 12, 60 '
+        'trials: slip p95 8.9 mm, max 13.2; 5.6 and 6.6 mm at 1 rad/s, which turns 25 deg in '
+        'under 0.5 s of a carry of 1.15-2.1 s; 0.5-0.7 rad/s slip no less).',
+        unit='rad/s', low=0, high=10.0, low_open=True)
     pallet_clearance: float = setting(
         0.005, "Kept between the carried box and the pallet: the box's bottom stays this far "
         "above the pallet's top while its footprint comes within this distance of the pallet "
