@@ -155,7 +155,7 @@ def test_a_box_to_be_set_down_turns_to_the_place_yaw_no_faster_than_the_place_al
     for _ in range(200):  # 1 s of a carry, which lasts 1.15-2.1 s
         R_object = rotation_exp(object_angular_velocity(R_object, R_place, dynamics) * dt) \
             @ R_object
-    # 0.44 s at 1 rad/s, then exp(-12 t) over the rest: well below 0.1 deg.
+    # About 0.35 s at 1 rad/s (until the error is below 1/12 rad), then exp(-12 t): << 0.1 deg.
     assert np.linalg.norm(rotation_log(R_place @ R_object.T)) < math.radians(0.1)
 
 

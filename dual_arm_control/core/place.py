@@ -59,7 +59,8 @@ class PlaceConfig:
         'turned within about 0.15 s of the grasp, faster than the arms turn their pads: they '
         'rocked on the faces by up to 21 deg and slid (catalogue_random_place, seed 12, 60 '
         'trials: slip p95 8.9 mm, max 13.2; 5.6 and 6.6 mm at 1 rad/s, which turns 25 deg in '
-        'under 0.5 s of a carry of 1.15-2.1 s; 0.5-0.7 rad/s slip no less).',
+        'under 0.5 s of a carry of 1.15-2.1 s; on the 13 worst-slip trials 0.5 and 0.7 rad/s '
+        'slipped as much as 1).',
         unit='rad/s', low=0, high=10.0, low_open=True)
     pallet_clearance: float = setting(
         0.005, "Kept between the carried box and the pallet: the box's bottom stays this far "
