@@ -3,6 +3,7 @@
 from dataclasses import replace
 import math
 
+from conftest import yaw_rotation
 from dual_arm_control.core.cooperative import (
     absolute_relative, coordinated_gain_matrix, CoordinationConfig)
 from dual_arm_control.core.exceptions import ConfigError
@@ -114,7 +115,7 @@ def test_the_carried_object_turns_to_its_release_orientation():
     toss = TossConfig(orientation='given', release_rpy_deg=(0.0, 0.0, 20.0),
                       release_orientation_rate=10.0)
     R_desired = release_rotation(toss)
-    np.testing.assert_allclose(R_desired, rpy_to_matrix((0.0, 0.0, math.radians(20.0))))
+    np.testing.assert_allclose(R_desired, yaw_rotation(math.radians(20.0)))
     dynamics = object_orientation_ds(toss, max_angular_speed=3.0)
     R_object = rpy_to_matrix((0.05, -0.03, math.radians(-10.0)))
     initial_error = np.linalg.norm(rotation_log(R_desired @ R_object.T))
@@ -146,7 +147,7 @@ def test_a_box_to_be_set_down_turns_to_the_place_yaw_no_faster_than_the_place_al
     assert dynamics.convergence_rates == (12.0,) * 3
     assert object_orientation_ds(toss, 0.5, place).max_angular_speed == 0.5
     R_place = place_rotation(place)
-    R_object = rpy_to_matrix((0.0, 0.0, math.radians(25.0)))
+    R_object = yaw_rotation(math.radians(25.0))
     omega = object_angular_velocity(R_object, R_place, dynamics)
     np.testing.assert_allclose(omega, [0.0, 0.0, -1.0], atol=1e-12)
     unbounded = object_angular_velocity(R_object, R_place, object_orientation_ds(toss, 3.0))
