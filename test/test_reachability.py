@@ -4,6 +4,7 @@ import math
 
 from conftest import yaw_rotation
 from dual_arm_control.core.approach import rolled_impact_config
+from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.core.geometry import rotation_log
 from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
 from dual_arm_control.core.impact import clearance_limited_direction
@@ -63,7 +64,7 @@ def test_a_rolled_grasp_frame_keeps_the_face_point_and_normal():
 
 
 def test_candidates_prefer_the_unrolled_centred_grasp_and_keep_the_pad_on_the_face():
-    config = ReachabilityConfig()
+    config = ReachabilityConfig(last_resort_steps=0)
     clearance = 0.02
     for size in ([0.16] * 3, CUBE, [0.26] * 3, [0.2, 0.3, 0.2], [0.25, 0.19, 0.2]):
         candidates = grasp_candidates(size, config, clearance)
@@ -84,6 +85,41 @@ def test_candidates_prefer_the_unrolled_centred_grasp_and_keep_the_pad_on_the_fa
         # The rolled pad, 0.05 m narrower along the face, shifts 0.025 m farther toward +x.
         assert grasp_shifts(size, config, 0.5 * math.pi)[-1] == pytest.approx(
             grasp_shifts(size, config, 0.0)[-1] + 0.025, abs=1e-12)
+
+
+def test_the_last_resort_grasps_come_after_all_others_and_overhang_at_most_their_margin():
+    """
+    Beyond every grasp within edge_margin come, shift by shift, each roll's last resorts.
+
+    They shift on toward +x only until the pad's end overhangs the face by
+    -last_resort_edge_margin, the overhang never shrinks along them, and a box to be set
+    down gets none.
+    """
+    config = ReachabilityConfig()
+    assert config.last_resort_edge_margin < config.edge_margin
+    clearance = 0.02
+    for size in ([0.16] * 3, CUBE, [0.26] * 3, [0.2, 0.3, 0.2], [0.25, 0.19, 0.2]):
+        regular = grasp_candidates(size, ReachabilityConfig(last_resort_steps=0), clearance)
+        candidates = grasp_candidates(size, config, clearance)
+        assert len(candidates) == len(regular) + config.last_resort_steps * len(
+            {roll for roll, _ in regular})
+        for (roll, offset), (regular_roll, regular_offset) in zip(candidates, regular):
+            assert roll == regular_roll
+            np.testing.assert_array_equal(offset, regular_offset)
+        overhangs = []
+        for roll, offset in candidates[len(regular):]:
+            half_along, _ = rolled_pad_half_extents(roll, 0.075, 0.05)
+            assert offset[0] > max(grasp_shifts(size, config, roll)) + 1e-3
+            overhangs.append(offset[0] + half_along - 0.5 * size[0])
+            assert offset[1] == 0.0 and offset[2] == grasp_lift(size, config, roll, clearance)
+        assert overhangs == sorted(overhangs)
+        assert overhangs[-1] == pytest.approx(-config.last_resort_edge_margin)
+        for both_ways, raised in ((True, False), (True, True)):
+            assert len(grasp_candidates(size, config, clearance, both_ways, raised)) == len(
+                grasp_candidates(size, ReachabilityConfig(last_resort_steps=0), clearance,
+                                 both_ways, raised))
+    with pytest.raises(ConfigError, match='last_resort_edge_margin'):
+        ReachabilityConfig(last_resort_edge_margin=-0.02)
 
 
 def test_a_rolled_pad_rises_to_clear_the_support_or_is_left_out():
@@ -157,6 +193,37 @@ def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
         frame = grasp_frame('left', p_world_object, R_world_object, CUBE, [shift, 0.0, 0.0])
         wrist = frame.p_world_grasp - WRIST_TO_TOOL * frame.normal
         assert np.linalg.norm(wrist - SHOULDER['left']) < SHOULDER_WRIST_MIN['left']
+
+
+def test_a_box_only_a_last_resort_grasp_reaches_is_grasped_with_it(models, cell):
+    """
+    The 0.26 m cube 5 cm closer than nominal, 4 cm to the right, yawed -20 deg toward the right.
+
+    No grasp within edge_margin reaches the right face (catalogue_random seed 11 refused this
+    draw, trial 249); the first last-resort shift does: the rolled pads overhang the face by
+    at most -last_resort_edge_margin and both tools reach their grasp frames within the joint
+    limits.
+    """
+    size = np.array([0.26] * 3)
+    p_world_object = np.array([0.36, -0.041, 0.22 + 0.13])
+    R_world_object = yaw_rotation(math.radians(-20.0))
+    home = {arm: cell.arm(arm).q_home for arm in ARMS}
+    refused = plan_grasp(models, home, p_world_object, R_world_object, size,
+                         ReachabilityConfig(last_resort_steps=0), 0.02)
+    assert not refused.reachable and 'right arm misses its grasp frame' in refused.reason
+    config = ReachabilityConfig()
+    plan = plan_grasp(models, home, p_world_object, R_world_object, size, config, 0.02)
+    assert plan.reachable and plan.reason == ''
+    half_along, _ = rolled_pad_half_extents(plan.roll, 0.075, 0.05)
+    assert plan.offset[0] > max(grasp_shifts(size, config, plan.roll)) + 1e-3
+    assert plan.offset[0] + half_along <= 0.13 - config.last_resort_edge_margin + 1e-12
+    for arm in ARMS:
+        frame = grasp_frame(arm, p_world_object, R_world_object, size, plan.offset, plan.roll)
+        q = plan.solutions[arm].q
+        lower, upper = models[arm].position_limits
+        assert np.all(q >= lower) and np.all(q <= upper)
+        p_world_tool, _ = models[arm].tool_pose(q)
+        assert np.linalg.norm(p_world_tool - frame.p_world_grasp) <= config.position_tolerance
 
 
 def test_a_box_no_flush_pad_can_reach_is_still_refused(models, cell):
