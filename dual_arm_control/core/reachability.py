@@ -200,6 +200,17 @@ def inverse_kinematics(model, p_world_target, R_world_target, q_start, config):
                         and orientation_error <= config.orientation_tolerance)
 
 
+def largest_shift(size, config, roll, edge_margin):
+    """
+    Return the shift [m] along the face that puts the pad's end edge_margin inside its edge.
+
+    A negative edge_margin lets the pad overhang the edge; roll [rad] sets the pad's extent
+    along the face. 0 when even the centred pad reaches past that.
+    """
+    half_extent, _ = rolled_pad_half_extents(roll, config.pad_half_length, config.pad_half_width)
+    return max(0.5 * float(size[0]) - half_extent - edge_margin, 0.0)
+
+
 def grasp_shifts(size, config, roll=0.0, both_ways=False):
     """
     Return the grasp shifts [m] to try: centred first, up to the pad end at edge_margin.
@@ -208,8 +219,7 @@ def grasp_shifts(size, config, roll=0.0, both_ways=False):
     (core.grasp.rolled_pad_half_extents). The shifts go toward +x of the object, or with
     both_ways toward -x too (-x first at each length).
     """
-    half_extent, _ = rolled_pad_half_extents(roll, config.pad_half_length, config.pad_half_width)
-    largest = max(0.5 * float(size[0]) - half_extent - config.edge_margin, 0.0)
+    largest = largest_shift(size, config, roll, config.edge_margin)
     if largest == 0.0 or config.shift_steps == 0:
         return (0.0,)
     lengths = [largest * step / config.shift_steps for step in range(1, config.shift_steps + 1)]
@@ -224,9 +234,8 @@ def last_resort_shifts(size, config, roll=0.0):
     They go beyond grasp_shifts' largest in last_resort_steps, up to the pad's end at
     last_resort_edge_margin.
     """
-    half_extent, _ = rolled_pad_half_extents(roll, config.pad_half_length, config.pad_half_width)
-    largest = max(0.5 * float(size[0]) - half_extent - config.edge_margin, 0.0)
-    farthest = max(0.5 * float(size[0]) - half_extent - config.last_resort_edge_margin, 0.0)
+    largest = largest_shift(size, config, roll, config.edge_margin) if config.shift_steps else 0.0
+    farthest = largest_shift(size, config, roll, config.last_resort_edge_margin)
     if farthest <= largest or config.last_resort_steps == 0:
         return ()
     steps = config.last_resort_steps
