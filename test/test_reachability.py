@@ -63,6 +63,19 @@ def test_a_rolled_grasp_frame_keeps_the_face_point_and_normal():
         assert abs(rolled.R_world_grasp[:, 0] @ R_world_object[:, 2]) == pytest.approx(1.0)
 
 
+def assert_both_arms_reach(models, plan, p_world_object, R_world_object, size, config):
+    """Assert each arm's planned joints are within its limits and put its tool on its frame."""
+    for arm in ARMS:
+        frame = grasp_frame(arm, p_world_object, R_world_object, size, plan.offset, plan.roll)
+        q = plan.solutions[arm].q
+        lower, upper = models[arm].position_limits
+        assert np.all(q >= lower) and np.all(q <= upper)
+        p_world_tool, R_world_tool = models[arm].tool_pose(q)
+        assert np.linalg.norm(p_world_tool - frame.p_world_grasp) <= config.position_tolerance
+        assert np.linalg.norm(rotation_log(frame.R_world_grasp @ R_world_tool.T)) <= (
+            config.orientation_tolerance)
+
+
 def test_candidates_prefer_the_unrolled_centred_grasp_and_keep_the_pad_on_the_face():
     config = ReachabilityConfig(last_resort_steps=0)
     clearance = 0.02
@@ -179,15 +192,7 @@ def test_a_box_turned_toward_an_arm_is_grasped_with_rolled_pads(models, cell):
     assert abs(plan.roll) == pytest.approx(0.5 * math.pi)
     flat_reach = max(grasp_shifts(CUBE, config, 0.0))
     assert flat_reach < plan.offset[0] <= 0.1 - 0.05 - config.edge_margin + 1e-12
-    for arm in ARMS:
-        frame = grasp_frame(arm, p_world_object, R_world_object, CUBE, plan.offset, plan.roll)
-        q = plan.solutions[arm].q
-        lower, upper = models[arm].position_limits
-        assert np.all(q >= lower) and np.all(q <= upper)
-        p_world_tool, R_world_tool = models[arm].tool_pose(q)
-        assert np.linalg.norm(p_world_tool - frame.p_world_grasp) <= config.position_tolerance
-        assert np.linalg.norm(rotation_log(frame.R_world_grasp @ R_world_tool.T)) <= (
-            config.orientation_tolerance)
+    assert_both_arms_reach(models, plan, p_world_object, R_world_object, CUBE, config)
     # Without the rolled candidates the same box is out of reach of the left arm.
     for shift in grasp_shifts(CUBE, config, 0.0):
         frame = grasp_frame('left', p_world_object, R_world_object, CUBE, [shift, 0.0, 0.0])
@@ -217,13 +222,7 @@ def test_a_box_only_a_last_resort_grasp_reaches_is_grasped_with_it(models, cell)
     half_along, _ = rolled_pad_half_extents(plan.roll, 0.075, 0.05)
     assert plan.offset[0] > max(grasp_shifts(size, config, plan.roll)) + 1e-3
     assert plan.offset[0] + half_along <= 0.13 - config.last_resort_edge_margin + 1e-12
-    for arm in ARMS:
-        frame = grasp_frame(arm, p_world_object, R_world_object, size, plan.offset, plan.roll)
-        q = plan.solutions[arm].q
-        lower, upper = models[arm].position_limits
-        assert np.all(q >= lower) and np.all(q <= upper)
-        p_world_tool, _ = models[arm].tool_pose(q)
-        assert np.linalg.norm(p_world_tool - frame.p_world_grasp) <= config.position_tolerance
+    assert_both_arms_reach(models, plan, p_world_object, R_world_object, size, config)
 
 
 def test_a_box_no_flush_pad_can_reach_is_still_refused(models, cell):
