@@ -77,7 +77,7 @@ def assert_both_arms_reach(models, plan, p_world_object, R_world_object, size, c
 
 
 def test_candidates_prefer_the_unrolled_centred_grasp_and_keep_the_pad_on_the_face():
-    config = ReachabilityConfig(last_resort_steps=0)
+    config = ReachabilityConfig()
     clearance = 0.02
     for size in ([0.16] * 3, CUBE, [0.26] * 3, [0.2, 0.3, 0.2], [0.25, 0.19, 0.2]):
         candidates = grasp_candidates(size, config, clearance)
@@ -105,15 +105,15 @@ def test_the_last_resort_grasps_come_after_all_others_and_overhang_at_most_their
     Beyond every grasp within edge_margin come, shift by shift, each roll's last resorts.
 
     They shift on toward +x only until the pad's end overhangs the face by
-    -last_resort_edge_margin, the overhang never shrinks along them, and a box to be set
-    down gets none.
+    -last_resort_edge_margin, the overhang never shrinks along them, and with no last-resort
+    steps there are none; plan_grasp asks for them for a box to be tossed only.
     """
     config = ReachabilityConfig()
     assert config.last_resort_edge_margin < config.edge_margin
     clearance = 0.02
     for size in ([0.16] * 3, CUBE, [0.26] * 3, [0.2, 0.3, 0.2], [0.25, 0.19, 0.2]):
-        regular = grasp_candidates(size, ReachabilityConfig(last_resort_steps=0), clearance)
-        candidates = grasp_candidates(size, config, clearance)
+        regular = grasp_candidates(size, config, clearance)
+        candidates = grasp_candidates(size, config, clearance, last_resort=True)
         assert len(candidates) == len(regular) + config.last_resort_steps * len(
             {roll for roll, _ in regular})
         for (roll, offset), (regular_roll, regular_offset) in zip(candidates, regular):
@@ -127,10 +127,8 @@ def test_the_last_resort_grasps_come_after_all_others_and_overhang_at_most_their
             assert offset[1] == 0.0 and offset[2] == grasp_lift(size, config, roll, clearance)
         assert overhangs == sorted(overhangs)
         assert overhangs[-1] == pytest.approx(-config.last_resort_edge_margin)
-        for both_ways, raised in ((True, False), (True, True)):
-            assert len(grasp_candidates(size, config, clearance, both_ways, raised)) == len(
-                grasp_candidates(size, ReachabilityConfig(last_resort_steps=0), clearance,
-                                 both_ways, raised))
+        assert len(grasp_candidates(size, ReachabilityConfig(last_resort_steps=0), clearance,
+                                    last_resort=True)) == len(regular)
     with pytest.raises(ConfigError, match='last_resort_edge_margin'):
         ReachabilityConfig(last_resort_edge_margin=-0.02)
 

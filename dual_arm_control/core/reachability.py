@@ -263,7 +263,8 @@ def grasp_lift(size, config, roll=0.0, support_clearance=0.0, raised=False):
     return lift
 
 
-def grasp_candidates(size, config, support_clearance=0.0, both_ways=False, raised=False):
+def grasp_candidates(size, config, support_clearance=0.0, both_ways=False, raised=False,
+                     last_resort=False):
     """
     Return the grasps to try, (roll [rad], offset (3,) [m] object frame), in order of preference.
 
@@ -276,23 +277,22 @@ def grasp_candidates(size, config, support_clearance=0.0, both_ways=False, raise
     it leaves the box's weight the shorter lever about the squeeze axis. Each grasp point is
     raised by grasp_lift, so the pad clears the surface the box rests on by support_clearance
     [m]; a roll whose pad cannot is left out. both_ways: shift toward -x of the object too;
-    raised: grasp as high as grasp_lift allows (a box to be set down). A box to be tossed
-    (neither) gets the last_resort_shifts after all of these, shift by shift, each roll in
-    turn: a pad overhanging the face by more than edge_margin pivots on the face's edge as the
-    box is carried, so it is taken only when nothing else reaches. A box to be set down does
-    not: its grasp must reach the place too, and none refused on the catalogue did with them.
+    raised: grasp as high as grasp_lift allows (a box to be set down). last_resort: append
+    the last_resort_shifts after all of these, shift by shift, each roll in turn: a pad
+    overhanging the face by more than edge_margin pivots on the face's edge as the box is
+    carried, so it is taken only when nothing else reaches.
     """
-    candidates, last_resort = [], []
+    candidates, beyond = [], []
     for roll in PAD_ROLLS:
         lift = grasp_lift(size, config, roll, support_clearance, raised)
         if lift is not None:
             candidates.extend((roll, np.array([shift, 0.0, lift]))
                               for shift in grasp_shifts(size, config, roll, both_ways))
-            if not (both_ways or raised):
-                last_resort.append([(roll, np.array([shift, 0.0, lift]))
-                                    for shift in last_resort_shifts(size, config, roll)])
+            if last_resort:
+                beyond.append([(roll, np.array([shift, 0.0, lift]))
+                               for shift in last_resort_shifts(size, config, roll)])
     for step in range(config.last_resort_steps):
-        candidates.extend(shifts[step] for shifts in last_resort if step < len(shifts))
+        candidates.extend(shifts[step] for shifts in beyond if step < len(shifts))
     return tuple(candidates)
 
 
@@ -318,10 +318,12 @@ def plan_grasp(models, q_current, p_world_object, R_world_object, size, config,
     with the most joint-limit margin instead of the first: 35 % success on catalogue_random
     seed 11 against 41 %.) place: the box's pose (p (3,) [m], R (3, 3)) where it is to be set
     down, or None; given, the grasps shift both ways, sit high on the faces (grasp_lift's
-    raised) and place_order ranks them.
+    raised) and place_order ranks them; None (a toss), the last resorts follow the others (a
+    box to be set down gets none: its grasp must reach the place too, and none of the places
+    refused on the catalogue was reached with them).
     """
     candidates = grasp_candidates(size, config, support_clearance, both_ways=place is not None,
-                                  raised=place is not None)
+                                  raised=place is not None, last_resort=place is None)
     order, place_reason = range(len(candidates)), ''
     if place is not None:
         order, place_reason = place_order(models, candidates, place, size, config)
