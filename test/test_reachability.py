@@ -10,7 +10,8 @@ from dual_arm_control.core.grasp import grasp_frame, rolled_pad_half_extents
 from dual_arm_control.core.impact import clearance_limited_direction
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.reachability import (grasp_candidates, grasp_lift, grasp_shifts,
-                                                PAD_ROLLS, plan_grasp, ReachabilityConfig)
+                                                last_resort_shifts, PAD_ROLLS, plan_grasp,
+                                                ReachabilityConfig)
 from dual_arm_control.description.cell import arm_model, load_cell
 import numpy as np
 import pytest
@@ -219,6 +220,7 @@ def test_a_box_only_a_last_resort_grasp_reaches_is_grasped_with_it(models, cell)
     assert plan.reachable and plan.reason == ''
     half_along, _ = rolled_pad_half_extents(plan.roll, 0.075, 0.05)
     assert plan.offset[0] > max(grasp_shifts(size, config, plan.roll)) + 1e-3
+    assert plan.offset[0] == last_resort_shifts(size, config, plan.roll)[0]
     assert plan.offset[0] + half_along <= 0.13 - config.last_resort_edge_margin + 1e-12
     assert_both_arms_reach(models, plan, p_world_object, R_world_object, size, config)
 
