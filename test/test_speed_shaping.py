@@ -9,8 +9,8 @@ from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
 from dual_arm_control.core.speed_shaping import (
     arm_velocities_near_object, boosted_coordinated_velocity, boosted_velocity, profile_speed,
-    reach_speed, saturated_velocity, speed_blend_weight, SpeedErrorIntegrator, SpeedFilter,
-    SpeedProfileConfig)
+    reach_speed, released_velocity, saturated_velocity, speed_blend_weight, SpeedErrorIntegrator,
+    SpeedFilter, SpeedProfileConfig)
 import numpy as np
 import pytest
 
@@ -155,6 +155,22 @@ def test_a_live_parameter_change_keeps_the_speed_loop_correction():
                                   max_linear_speed=1.2))
     assert generator._toss_feedback.correction == integrated
     assert generator._toss_feedback.integral_gain == 30.0
+
+
+def test_the_pads_keep_the_configured_share_of_the_speed_loop_correction_as_they_open():
+    """Half the correction by default: a heavy box leaves less slow, a light one not fast."""
+    field = np.array([0.7603, 0.0, 0.3801])
+    loop = SpeedErrorIntegrator(integral_gain=40.0, limit_ratio=0.45)
+    for _ in range(100):
+        corrected = loop.update(field, 0.92 * field, 0.005)
+    assert np.linalg.norm(corrected) > 1.1 * np.linalg.norm(field)
+    share = TossConfig().release_correction_share
+    assert share == 0.5
+    np.testing.assert_allclose(released_velocity(field, corrected, 0.0), field)
+    np.testing.assert_allclose(released_velocity(field, corrected, 1.0), corrected)
+    kept = released_velocity(field, corrected, share)
+    np.testing.assert_allclose(kept - field, 0.5 * (corrected - field))
+    assert np.cross(kept, field) == pytest.approx(np.zeros(3), abs=1e-12)
 
 
 def test_near_the_object_each_arm_moves_at_the_speed_far_from_it_the_arms_keep_their_ratio():

@@ -82,6 +82,12 @@ class TossConfig:
         'The arms carry the 3-6 kg catalogue boxes up to 40 % slow without it '
         '(catalogue_random, seed 11, 300 trials: 252 succeed at 0.45 or 0.7, 247 at 0.25, '
         '12 and 18 of them released too slow or off direction).', low=0, high=1.0)
+    release_correction_share: float = setting(
+        0.5, "Share of the speed loop's correction that the pads keep while they open "
+        '(core.speed_shaping.released_velocity). The arms carry a heavy box until the pads let '
+        'go of it: with none kept, 6 kg packs grabbed at the end of the reach left 5-8 % slow and '
+        '3-6 deg flat; with all of it, paper_toss_random left 1.5 % fast (median, 100 trials; '
+        '-0.55 % with none, +0.04 % with half).', low=0, high=1.0)
     orientation: str = setting(
         'hold', "The carried object's orientation (the rotation term of eq. 8): hold keeps the "
         'orientation the box had when the grasp settled, so the impact and the unequal lag of '

@@ -38,8 +38,8 @@ from dual_arm_control.core.place import place_rotation, place_velocity
 from dual_arm_control.core.release import clear_of_the_box
 from dual_arm_control.core.resting_object import RestingObjectFilter
 from dual_arm_control.core.speed_shaping import (
-    arm_velocities_near_object, boosted_velocity, reach_speed, saturated_velocity,
-    SpeedErrorIntegrator, SpeedFilter)
+    arm_velocities_near_object, boosted_velocity, reach_speed, released_velocity,
+    saturated_velocity, SpeedErrorIntegrator, SpeedFilter)
 from dual_arm_control.core.validation import finite_array
 import numpy as np
 
@@ -185,8 +185,10 @@ class DualArmMotionGenerator:
                 commands = self._follow_belt(commands)
         elif phase in (Phase.CONTACT, Phase.MANIPULATE):
             commands = self._carry(p_tools, R_tools, frames, object_velocity, omega_object)
-            self._release_object_velocity = (self._toss_velocity if config.task in TOSS_TASKS
-                                             else object_velocity)
+            self._release_object_velocity = (
+                released_velocity(self._toss_velocity, object_velocity,
+                                  config.toss.release_correction_share)
+                if config.task in TOSS_TASKS else object_velocity)
         elif phase is Phase.RELEASE:
             commands = self._open_hands(R_tools, frames)
         else:
@@ -351,12 +353,7 @@ class DualArmMotionGenerator:
         return self._grasp_pose_commands(velocity, R_tools, frames, omega_object)
 
     def _open_hands(self, R_tools, frames):
-        """
-        Return the release commands: keep the release velocity, pull the pads off the faces.
-
-        A toss keeps the toss DS's velocity without the speed loop's correction for the arms'
-        lag under load: unloaded, the pads (touching a few ms more) pushed the box 1.5 % fast.
-        """
+        """Return the release commands: keep the release velocity, pull the pads off the faces."""
         config = self._config
         velocity = saturated_velocity(
             self._release_object_velocity

@@ -189,3 +189,16 @@ class SpeedErrorIntegrator:
         self.correction = min(max(self.correction + self.integral_gain * dt * shortfall, -limit),
                               limit)
         return desired * (1.0 + self.correction / speed)
+
+
+def released_velocity(field_velocity, corrected_velocity, correction_share):
+    """
+    Return the object velocity (3,) [m/s] the pads keep while they open at a toss's release.
+
+    field_velocity is the toss field's, corrected_velocity the speed loop's command
+    (SpeedErrorIntegrator); correction_share [0, 1] of the correction is kept. The arms carry
+    the box until the pads let go of it, so dropping the correction slows a heavy box as it
+    leaves; keeping all of it pushes a light one fast (toss.release_correction_share).
+    """
+    field_velocity = np.asarray(field_velocity, dtype=float)
+    return field_velocity + correction_share * (np.asarray(corrected_velocity) - field_velocity)
