@@ -158,7 +158,7 @@ def test_a_live_parameter_change_keeps_the_speed_loop_correction():
 
 
 def test_the_pads_keep_the_configured_share_of_the_speed_loop_correction_as_they_open():
-    """Half the correction by default: a heavy box leaves less slow, a light one not fast."""
+    """The release velocity is the toss field plus its share (half by default) of the loop's."""
     field = np.array([0.7603, 0.0, 0.3801])
     loop = SpeedErrorIntegrator(integral_gain=40.0, limit_ratio=0.45)
     for _ in range(100):
