@@ -268,6 +268,52 @@ def test_a_gain_above_one_brings_both_pads_in_together_at_the_commanded_speed():
     assert np.all(np.abs(speeds - 1.0) < 0.05)
 
 
+def test_an_arm_slower_than_commanded_counts_the_gap_it_loses_regaining_its_speed():
+    """With the tools' velocities, the time to contact adds lag (commanded - measured)."""
+    from dual_arm_control.core.approach import synchronised_arrival
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    velocity = np.array([[0.0, -0.4, 0.0], [0.0, 0.4, 0.0]])
+    measured = np.array([[0.0, -0.3, 0.0], [0.0, 0.4, 0.0]])
+    gaps = [0.05, 0.05]
+    np.testing.assert_array_equal(
+        synchronised_arrival(velocity, gaps, normals, schedule(), measured), velocity)
+    # Left closes 0.1 m/s slower than commanded: 0.02 s x 0.1 m/s = 2 mm more to go.
+    timed = synchronised_arrival(velocity, gaps, normals, schedule(lag=0.02), measured)
+    np.testing.assert_allclose(timed[0], (1.0 + 3.0 * 0.002 / 0.102) * velocity[0])
+    np.testing.assert_allclose(timed[1], (1.0 - 3.0 * 0.002 / 0.102) * velocity[1])
+
+
+def _touch_times_of_lagging_pads(lag, tracking_time_constant=0.05):
+    """Integrate pads 6 and 8 cm from their faces that follow their commands with a lag."""
+    from dual_arm_control.core.approach import synchronised_arrival
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    velocity = np.array([[0.0, -0.5, 0.0], [0.0, 0.5, 0.0]])
+    gaps, tool_velocity = np.array([0.06, 0.08]), velocity.copy()
+    dt, touch = 0.001, [None, None]
+    for step in range(1000):
+        command = synchronised_arrival(velocity, gaps, normals,
+                                       schedule(horizon=0.1, lag=lag), tool_velocity)
+        tool_velocity = tool_velocity + dt / tracking_time_constant * (command - tool_velocity)
+        gaps = gaps - dt * np.einsum('ij,ij->i', tool_velocity, normals)
+        for arm in range(2):
+            if touch[arm] is None and gaps[arm] <= 0.0:
+                touch[arm] = step * dt
+    return touch
+
+
+def test_counting_the_tracking_lag_keeps_the_slowed_arm_from_touching_last():
+    """
+    Time the pads of arms that follow their commands with a 50 ms lag.
+
+    Timed by the commanded speeds alone, the arm slowed ahead cannot regain its speed in the
+    fade and touches 8 ms after the other.
+    """
+    blind = _touch_times_of_lagging_pads(lag=0.0)
+    assert blind[0] - blind[1] >= 0.006
+    aware = _touch_times_of_lagging_pads(lag=0.025)
+    assert abs(aware[0] - aware[1]) <= 0.003
+
+
 def _tilted_pads(shift_along_face):
     """Faces 0.26 m square at y = +-0.1 m; the left pad tilted 7 deg, the right one flush."""
     from dual_arm_control.core.grasp import FaceRectangle

@@ -79,7 +79,7 @@ def pad_overlap_gap(outline, gaps, half_extents):
     return min(vertex[2] for vertex in polygon)
 
 
-def synchronised_arrival(velocity, gaps, normals, schedule):
+def synchronised_arrival(velocity, gaps, normals, schedule, measured_velocity=None):
     """
     Return velocity (2, 3) [m/s] rescaled per arm so that both pads reach their faces together.
 
@@ -93,13 +93,21 @@ def synchronised_arrival(velocity, gaps, normals, schedule):
     (later arm times the ratio of the times) keeps that ratio to the end and strikes fast. The
     schedule blends in over the outer half of schedule.horizon [m] and out over the last
     schedule.final_gap [m] of the nearer pad, where the gaps are within the mocap's noise.
+    With the tools' measured velocity (2, 3) [m/s], each time also counts the lag of an arm
+    that moves slower than commanded: it regains the commanded closing speed with the time
+    constant schedule.lag [s] once the schedule fades, losing lag (commanded - measured) of
+    gap, so the arm slowed furthest is not left behind at contact.
     """
     velocity = np.asarray(velocity, dtype=float)
     gaps = np.asarray(gaps, dtype=float)
     closing = np.einsum('ij,ij->i', velocity, normals)
     if np.any(closing <= 1e-6) or np.any(gaps <= 0.0) or np.max(gaps) >= schedule.horizon:
         return velocity
-    times = gaps / closing
+    lost_gap = 0.0
+    if measured_velocity is not None:
+        measured = np.einsum('ij,ij->i', np.asarray(measured_velocity, dtype=float), normals)
+        lost_gap = schedule.lag * (closing - measured)
+    times = np.maximum(gaps + lost_gap, 0.0) / closing
     lead = schedule.gain * (times - times[::-1]) / times.sum()
     weight = min(1.0, 2.0 * (1.0 - float(np.max(gaps)) / schedule.horizon))
     if schedule.final_gap > 0.0:

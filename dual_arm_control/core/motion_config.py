@@ -122,7 +122,7 @@ class MotionGeneratorConfig:
         schedule = ArrivalSchedule(
             impact.synchronisation_distance, impact.synchronisation_final_gap,
             impact.synchronisation_gain, impact.synchronisation_max_slowdown,
-            impact.synchronisation_max_speedup)
+            impact.synchronisation_max_speedup, impact.synchronisation_lag)
         if self.moving_grab.enabled:
             return (0.0, 0.0), schedule._replace(
                 fastest=self.moving_grab.synchronisation_max_speedup)

@@ -59,7 +59,7 @@ class DualArmMotionGenerator:
         self._resting_object = RestingObjectFilter()
         self._release_object_velocity = self._toss_velocity = np.zeros(3)
         self._grasp_offset, self._grasp_roll = np.zeros(3), 0.0
-        self._elbow_reaches = None
+        self._elbow_reaches = self._reach_tools = None
         self._belt_velocity = np.zeros(3)
         self._grasped_rotation = self._pick_height = self._halt = None
         self.reconfigure(config)
@@ -168,6 +168,7 @@ class DualArmMotionGenerator:
         phase = phase_output.phase
         if phase_output.transition is not None and phase is Phase.REACH:
             self._reach_speed.reset(0.0)
+            self._reach_tools = None
         if config.moving_grab.enabled and phase in (Phase.STANDBY, Phase.REACH):
             self._belt_velocity = filtered_belt_velocity(
                 self._belt_velocity, v_object, dt, config.moving_grab.velocity_time_constant)
@@ -209,8 +210,7 @@ class DualArmMotionGenerator:
 
         A held box (CONTACT, MANIPULATE) gets the carry's commands with a zero object twist (a
         point attractor back to where the halt found it pulled the pair along: worse) and each
-        pad pressed into its face at halt_squeeze_speed; otherwise every tool holds its pose at
-        the halt.
+        pad pressed into its face at halt_squeeze_speed; otherwise the tools hold their poses.
         """
         halt, phase, first = self._halt, self._phase_machine.phase, not self._halt
         if first:
@@ -318,7 +318,10 @@ class DualArmMotionGenerator:
             normals = np.array([face.normal for face in faces])
             pad, schedule = config.arrival_synchroniser()
             gaps = first_touch_gaps(faces, p_tools, R_tools, *pad)
-            velocity = synchronised_arrival(velocity, gaps, normals, schedule)
+            measured = (None if self._reach_tools is None or dt <= 0.0
+                        else (p_tools - self._reach_tools) / dt)
+            velocity = synchronised_arrival(velocity, gaps, normals, schedule, measured)
+        self._reach_tools = p_tools
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)
