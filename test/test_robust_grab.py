@@ -225,7 +225,7 @@ def test_a_pad_touching_alone_stops_pushing_into_its_face():
 def schedule(**changes):
     from dual_arm_control.core.impact import ArrivalSchedule
     return ArrivalSchedule(horizon=0.25, final_gap=0.005, gain=3.0, slowest=0.75,
-                           fastest=1.35)._replace(**changes)
+                           fastest=1.35, lag=0.0)._replace(**changes)
 
 
 def test_the_arm_behind_speeds_up_and_the_arm_ahead_slows_down():

@@ -93,10 +93,10 @@ def synchronised_arrival(velocity, gaps, normals, schedule, measured_velocity=No
     (later arm times the ratio of the times) keeps that ratio to the end and strikes fast. The
     schedule blends in over the outer half of schedule.horizon [m] and out over the last
     schedule.final_gap [m] of the nearer pad, where the gaps are within the mocap's noise.
-    With the tools' measured velocity (2, 3) [m/s], each time also counts the lag of an arm
-    that moves slower than commanded: it regains the commanded closing speed with the time
-    constant schedule.lag [s] once the schedule fades, losing lag (commanded - measured) of
-    gap, so the arm slowed furthest is not left behind at contact.
+    With the tools' measured velocity (2, 3) [m/s], each time also counts the tracking lag:
+    an arm regains the commanded closing speed with the time constant schedule.lag [s] as the
+    schedule fades, so one slower than commanded loses lag (commanded - measured) of gap (one
+    faster gains it), and the arm slowed ahead is not left behind at contact.
     """
     velocity = np.asarray(velocity, dtype=float)
     gaps = np.asarray(gaps, dtype=float)

@@ -95,7 +95,7 @@ class ArrivalSchedule(NamedTuple):
     gain: float
     slowest: float
     fastest: float
-    lag: float = 0.0
+    lag: float
 
 
 class ImpactGeometry(NamedTuple):
