@@ -128,6 +128,14 @@ def test_conveyor_grab_scenario_and_its_draws():
     assert 0.3 <= min(starts) and max(starts) <= 1.0
 
 
+def test_a_moving_grab_times_its_pads_by_the_commanded_speeds_alone():
+    """The tools' measured speeds carry the belt's: no lag term (a still box keeps its own)."""
+    moving = motion_config_for_scenario(load_scenario('conveyor_grab', cell=CELL), CELL)
+    still = motion_config_for_scenario(load_scenario('paper_toss', cell=CELL), CELL)
+    assert moving.arrival_synchroniser()[1].lag == 0.0
+    assert still.arrival_synchroniser()[1].lag == still.impact.synchronisation_lag > 0.0
+
+
 def test_incoming_belt_carries_the_box_at_its_speed():
     scenario = load_scenario('conveyor_grab', cell=CELL)
     twin = DualArmTwin(scenario, CELL)
