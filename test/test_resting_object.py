@@ -92,8 +92,9 @@ def test_pads_meet_a_box_seen_by_a_noisy_mocap_together():
 
     Reading the tracker alone, its estimate strayed 3.4 mm along the squeeze axis 30 ms
     before contact and the arrival synchroniser timed the pads apart: they touched 10 ms apart
-    (measured). Low-passed for the reach (the default), within the 4 ms of the paper cube's
-    nominal toss (2 ms measured).
+    (measured; 6 ms since the synchroniser counts the arms' lag). Low-passed for the reach (the
+    default), at least one 2 ms sample closer and within the 4 ms of the paper cube's nominal
+    toss (4 ms measured; 2 ms before the lag term).
     """
     cell = load_cell()
     scenario = sample_trial(load_scenario('catalogue_random', cell), 88, cell)
@@ -106,5 +107,6 @@ def test_pads_meet_a_box_seen_by_a_noisy_mocap_together():
         gaps[time_constant] = episode_metrics(scenario, data, cell)['contact_time_gap']
     print(f'contact gap: tracker alone {gaps[0.0] * 1e3:.0f} ms, low-passed '
           f'{gaps[RestingObjectConfig().time_constant] * 1e3:.0f} ms')
-    assert gaps[0.0] >= 0.008
-    assert gaps[RestingObjectConfig().time_constant] <= 0.004 + 1e-9
+    low_passed = gaps[RestingObjectConfig().time_constant]
+    assert gaps[0.0] >= low_passed + 0.002 - 1e-9
+    assert low_passed <= 0.004 + 1e-9
