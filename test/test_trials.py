@@ -282,6 +282,20 @@ def test_failure_reasons_name_the_criteria():
                                              't_release': None}) == 'no release'
 
 
+def test_a_grab_from_the_belt_names_the_pad_that_struck_off_speed():
+    grabbed = {'contact_time_gap': 0.004, 't_grasp': 1.4, 'max_slip': 0.004, 't_release': 1.8,
+               'release_position_error': 0.005, 'release_velocity_error': 0.02,
+               'landing_error': 0.01, 'impact_speed_relative_left': 0.5,
+               'impact_speed_relative_right': 0.5 * (1.0 - 0.17), 'belt_drag': 0.002}
+    assert failure_reason('pick_and_toss', grabbed, grab_impact_speed=0.5) == (
+        'impact_speed_relative_right 0.415 m/s, 17.0 % slow for 0.5 (limit 15 %)')
+    # The same metrics judged as a grab at rest: the relative speeds are not its criteria.
+    assert failure_reason('pick_and_toss', grabbed) == 'failed its success criteria'
+    dragged = dict(grabbed, impact_speed_relative_right=0.5, belt_drag=0.012)
+    assert failure_reason('pick_and_toss', dragged, grab_impact_speed=0.5) == \
+        'belt_drag 0.012 > 0.01 m'
+
+
 def test_bad_scenario_is_one_line_and_exit_2(tmp_path, capsys):
     path = write(tmp_path / 'bad.yaml', toss_data(randomization={'mass': [2.0, 1.0]}))
     assert main(['--scenario', str(path), '--trials', '2', '--out', str(tmp_path / 'o')]) == 2

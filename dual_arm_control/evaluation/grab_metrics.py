@@ -71,10 +71,32 @@ def grab_metrics(data, contact_index, directions):
     return result
 
 
+def grab_failures(result, impact_speed):
+    """
+    Return the grab criteria result misses, each as text (empty: the grab succeeded).
+
+    Both relative impact speeds within RELATIVE_IMPACT_LIMIT of impact_speed [m/s], and the
+    belt drag within BELT_DRAG_LIMIT.
+    """
+    failures = []
+    for arm in ('left', 'right'):
+        speed = result.get(f'impact_speed_relative_{arm}')
+        if speed is None:
+            failures.append(f'no relative impact speed of the {arm} pad')
+        elif abs(speed - impact_speed) > RELATIVE_IMPACT_LIMIT * impact_speed:
+            failures.append(
+                f'impact_speed_relative_{arm} {speed:.3f} m/s, '
+                f'{100.0 * abs(speed - impact_speed) / impact_speed:.1f} % '
+                f'{"slow" if speed < impact_speed else "fast"} for {impact_speed:g} '
+                f'(limit {100.0 * RELATIVE_IMPACT_LIMIT:g} %)')
+    drag = result.get('belt_drag')
+    if drag is None:
+        failures.append('no belt drag: the pads did not both touch')
+    elif drag > BELT_DRAG_LIMIT:
+        failures.append(f'belt_drag {drag:.4g} > {BELT_DRAG_LIMIT:g} m')
+    return failures
+
+
 def grab_succeeded(result, impact_speed):
     """Return True if both relative impact speeds are within the limit and the drag is too."""
-    speeds = [result[f'impact_speed_relative_{arm}'] for arm in ('left', 'right')]
-    drag = result['belt_drag']
-    return (None not in speeds and drag is not None and drag <= BELT_DRAG_LIMIT
-            and all(abs(speed - impact_speed) <= RELATIVE_IMPACT_LIMIT * impact_speed
-                    for speed in speeds))
+    return not grab_failures(result, impact_speed)

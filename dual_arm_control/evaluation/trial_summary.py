@@ -13,6 +13,7 @@ from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, LANDING_LIMI
                                                  RELEASE_ORIENTATION_LIMIT,
                                                  RELEASE_POSITION_LIMIT, RELEASE_VELOCITY_LIMIT,
                                                  SLIP_LIMIT)
+from dual_arm_control.evaluation.grab_metrics import grab_failures
 from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
 import numpy as np
 
@@ -84,8 +85,13 @@ def _exceeds(key, value, limit, unit):
     return f'{key} {text} > {limit:g}{" " + unit if unit else ""}'
 
 
-def failure_reason(task, metrics):
-    """Return why a finished trial of task failed its success criteria (evaluation/episode.py)."""
+def failure_reason(task, metrics, grab_impact_speed=None):
+    """
+    Return why a finished trial of task failed its success criteria (evaluation/episode.py).
+
+    grab_impact_speed: the desired impact speed [m/s] of a grab from the moving incoming belt,
+    whose relative impact speeds and belt drag are then checked too; None for a resting box.
+    """
     reasons = []
     collisions = metrics.get('arm_collision_count')
     if collisions:
@@ -110,6 +116,8 @@ def failure_reason(task, metrics):
     if left is not None and let_go is not None and let_go - left >= LOST_BOX_LEAD:
         reasons.append(f'box lost in the carry: both pads off {let_go - left:.3f} s before the '
                        'task let go')
+    if grab_impact_speed is not None and gap is not None:
+        reasons.extend(grab_failures(metrics, grab_impact_speed))
     checks = [('max_slip', SLIP_LIMIT, 'm')]
     if task in TOSS_TASKS:
         checks += [('release_position_error', RELEASE_POSITION_LIMIT, 'm'),

@@ -48,6 +48,11 @@ def write_trial_scenario(trial, path, source, index):
                                             default_flow_style=None))
 
 
+def _grab_impact_speed(trial):
+    """Return the desired impact speed [m/s] of a grab from the incoming belt, else None."""
+    return None if trial.incoming_belt is None else trial.speeds.impact
+
+
 def parse_arguments(argv=None):
     """Parse dual_arm_eval's command line."""
     parser = argparse.ArgumentParser(
@@ -139,7 +144,8 @@ def main(argv=None):
     wall_time = time.monotonic() - started
     aggregate = summarize([outcome.metrics for outcome in outcomes])
     failures = [{'trial': outcome.index,
-                 'reason': outcome.error or failure_reason(scenario.task, outcome.metrics)}
+                 'reason': outcome.error or failure_reason(
+                     scenario.task, outcome.metrics, _grab_impact_speed(trials[outcome.index]))}
                 for outcome in outcomes if not succeeded(outcome)]
     summary = {'scenario': str(source), 'runner': args.runner, 'trials': aggregate['trials'],
                'jobs': jobs, 'seed': scenario.seed, 'success_rate': aggregate['success_rate'],
