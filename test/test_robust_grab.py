@@ -248,21 +248,39 @@ def test_the_arm_behind_speeds_up_and_the_arm_ahead_slows_down():
     np.testing.assert_allclose(capped[0], 0.75 * velocity[0])
 
 
-def test_a_gain_above_one_brings_both_pads_in_together_at_the_commanded_speed():
-    """Integrate two pads closing on their faces: the one 20 % behind catches up by contact."""
+def _close_pads(gaps, speed, timing, tracking_time_constant=0.0, steps=1000):
+    """
+    Integrate two pads closing on their faces at 1 ms steps under the arrival synchroniser.
+
+    gaps (2,) [m]; speed: the commanded closing speed [m/s]; timing: the ArrivalSchedule.
+    The tools follow their commands with a first-order lag of tracking_time_constant [s]
+    (0: at once). Return the touch times [s] and the commanded speeds over speed at the first
+    touch.
+    """
     from dual_arm_control.core.approach import synchronised_arrival
     normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
-    velocity = np.array([[0.0, -0.4, 0.0], [0.0, 0.4, 0.0]])
-    gaps = np.array([0.05, 0.06])
+    velocity = np.array([[0.0, -speed, 0.0], [0.0, speed, 0.0]])
+    gaps, tool_velocity = np.array(gaps, dtype=float), velocity.copy()
     dt, touch, speeds = 0.001, [None, None], None
-    for step in range(400):
-        timed = synchronised_arrival(velocity, gaps, normals, schedule(final_gap=0.0))
-        gaps = gaps - dt * np.einsum('ij,ij->i', timed, normals)
+    for step in range(steps):
+        command = synchronised_arrival(velocity, gaps, normals, timing, tool_velocity)
+        if tracking_time_constant > 0.0:
+            tool_velocity = tool_velocity + dt / tracking_time_constant * (
+                command - tool_velocity)
+        else:
+            tool_velocity = command
+        gaps = gaps - dt * np.einsum('ij,ij->i', tool_velocity, normals)
         for arm in range(2):
             if touch[arm] is None and gaps[arm] <= 0.0:
                 touch[arm] = step * dt
                 if speeds is None:
-                    speeds = np.linalg.norm(timed, axis=1) / 0.4
+                    speeds = np.linalg.norm(command, axis=1) / speed
+    return touch, speeds
+
+
+def test_a_gain_above_one_brings_both_pads_in_together_at_the_commanded_speed():
+    """Integrate two pads closing on their faces: the one 20 % behind catches up by contact."""
+    touch, speeds = _close_pads([0.05, 0.06], 0.4, schedule(final_gap=0.0), steps=400)
     # Unsynchronised the right pad would touch 25 ms after the left.
     assert abs(touch[0] - touch[1]) <= 0.002
     assert np.all(np.abs(speeds - 1.0) < 0.05)
@@ -283,24 +301,6 @@ def test_an_arm_slower_than_commanded_counts_the_gap_it_loses_regaining_its_spee
     np.testing.assert_allclose(timed[1], (1.0 - 3.0 * 0.002 / 0.102) * velocity[1])
 
 
-def _touch_times_of_lagging_pads(lag, tracking_time_constant=0.05):
-    """Integrate pads 6 and 8 cm from their faces that follow their commands with a lag."""
-    from dual_arm_control.core.approach import synchronised_arrival
-    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
-    velocity = np.array([[0.0, -0.5, 0.0], [0.0, 0.5, 0.0]])
-    gaps, tool_velocity = np.array([0.06, 0.08]), velocity.copy()
-    dt, touch = 0.001, [None, None]
-    for step in range(1000):
-        command = synchronised_arrival(velocity, gaps, normals,
-                                       schedule(horizon=0.1, lag=lag), tool_velocity)
-        tool_velocity = tool_velocity + dt / tracking_time_constant * (command - tool_velocity)
-        gaps = gaps - dt * np.einsum('ij,ij->i', tool_velocity, normals)
-        for arm in range(2):
-            if touch[arm] is None and gaps[arm] <= 0.0:
-                touch[arm] = step * dt
-    return touch
-
-
 def test_counting_the_tracking_lag_keeps_the_slowed_arm_from_touching_last():
     """
     Time the pads of arms that follow their commands with a 50 ms lag.
@@ -308,9 +308,9 @@ def test_counting_the_tracking_lag_keeps_the_slowed_arm_from_touching_last():
     Timed by the commanded speeds alone, the arm slowed ahead cannot regain its speed in the
     fade and touches 8 ms after the other.
     """
-    blind = _touch_times_of_lagging_pads(lag=0.0)
+    blind, _ = _close_pads([0.06, 0.08], 0.5, schedule(horizon=0.1, lag=0.0), 0.05)
     assert blind[0] - blind[1] >= 0.006
-    aware = _touch_times_of_lagging_pads(lag=0.025)
+    aware, _ = _close_pads([0.06, 0.08], 0.5, schedule(horizon=0.1, lag=0.025), 0.05)
     assert abs(aware[0] - aware[1]) <= 0.003
 
 
