@@ -289,6 +289,10 @@ def test_a_grab_from_the_belt_names_the_pad_that_struck_off_speed():
                'impact_speed_relative_right': 0.5 * (1.0 - 0.17), 'belt_drag': 0.002}
     assert failure_reason('pick_and_toss', grabbed, grab_impact_speed=0.5) == (
         'impact_speed_relative_right 0.415 m/s, 17.0 % slow for 0.5 (limit 15 %)')
+    # Off by just over the limit: the figures in full enough to show it.
+    assert failure_reason('pick_and_toss', dict(grabbed, impact_speed_relative_right=0.42498),
+                          grab_impact_speed=0.5) == (
+        'impact_speed_relative_right 0.42498 m/s, 15.004 % slow for 0.5 (limit 15 %)')
     # The same metrics judged as a grab at rest: the relative speeds are not its criteria.
     assert failure_reason('pick_and_toss', grabbed) == 'failed its success criteria'
     dragged = dict(grabbed, impact_speed_relative_right=0.5, belt_drag=0.012)

@@ -84,11 +84,13 @@ def grab_failures(result, impact_speed):
         if speed is None:
             failures.append(f'no relative impact speed of the {arm} pad')
         elif abs(speed - impact_speed) > RELATIVE_IMPACT_LIMIT * impact_speed:
+            off = 100.0 * abs(speed - impact_speed) / impact_speed
+            limit = 100.0 * RELATIVE_IMPACT_LIMIT
+            digits = 1 if round(off, 1) > limit else 3
             failures.append(
-                f'impact_speed_relative_{arm} {speed:.3f} m/s, '
-                f'{100.0 * abs(speed - impact_speed) / impact_speed:.1f} % '
+                f'impact_speed_relative_{arm} {speed:.{digits + 2}f} m/s, {off:.{digits}f} % '
                 f'{"slow" if speed < impact_speed else "fast"} for {impact_speed:g} '
-                f'(limit {100.0 * RELATIVE_IMPACT_LIMIT:g} %)')
+                f'(limit {limit:g} %)')
     drag = result.get('belt_drag')
     if drag is None:
         failures.append('no belt drag: the pads did not both touch')
