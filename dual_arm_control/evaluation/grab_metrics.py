@@ -88,9 +88,9 @@ def grab_failures(result, impact_speed):
             limit = 100.0 * RELATIVE_IMPACT_LIMIT
             digits = 1 if round(off, 1) > limit else 3
             failures.append(
-                f'impact_speed_relative_{arm} {speed:.{digits + 2}f} m/s, {off:.{digits}f} % '
-                f'{"slow" if speed < impact_speed else "fast"} for {impact_speed:g} '
-                f'(limit {limit:g} %)')
+                f'impact_speed_relative_{arm} {off:.{digits}f} % '
+                f'{"slow" if speed < impact_speed else "fast"} > {limit:g} % '
+                f'({speed:.{digits + 2}f} m/s for {impact_speed:g})')
     drag = result.get('belt_drag')
     if drag is None:
         failures.append('no belt drag: the pads did not both touch')
