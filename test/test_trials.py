@@ -311,6 +311,13 @@ def test_bad_scenario_is_one_line_and_exit_2(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert '\n' not in error and str(path) in error and 'randomization.mass' in error
     assert main(['--scenario', str(path), '--trials', '0', '--out', str(tmp_path / 'o')]) == 2
+    capsys.readouterr()
+    good = write(tmp_path / 'good.yaml', toss_data(randomization={'mass': [1.0, 2.0]}))
+    assert main(['--scenario', str(good), '--as-is', '--out', str(tmp_path / 'o')]) == 2
+    assert 'randomization block' in capsys.readouterr().err
+    assert main(['--scenario', str(good), '--as-is', '--trials', '2',
+                 '--out', str(tmp_path / 'o')]) == 2
+    assert '--as-is runs one trial' in capsys.readouterr().err
     assert not (tmp_path / 'o').exists()
 
 
@@ -371,6 +378,14 @@ def test_two_inprocess_trials_in_parallel(tmp_path, cell):
     rerun = json.loads(json.dumps(episode_metrics(trial, log.trajectory, cell,
                                                   events=log.events)))
     assert same_within(rerun, metrics, 1e-9), 'the batch is reproducible from its seed'
+    # A batch's trial file re-run as it stands is that trial again (drawn anew, its sensor
+    # noise would be another).
+    again = tmp_path / 'again'
+    code, output = run_eval('--scenario', out / 'trial_001' / 'scenario.yaml', '--as-is',
+                            '--runner', 'inprocess', '--out', again)
+    assert code == 0, output
+    assert same_within(json.loads((again / 'trial_000' / 'metrics.json').read_text()),
+                       json.loads((out / 'trial_001' / 'metrics.json').read_text()), 1e-9)
     for name in ('landing_error.png', 'impact_speeds.png', 'release_errors.png', 'grasp.png',
                  'landing_positions.png', 'sensitivity.png'):
         assert (out / name).stat().st_size > 5_000, name

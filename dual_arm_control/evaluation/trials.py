@@ -39,10 +39,11 @@ def trial_directory(out_dir, index):
     return Path(out_dir) / f'trial_{index:03d}'
 
 
-def write_trial_scenario(trial, path, source, index):
+def write_trial_scenario(trial, path, source, index, drawn=True):
     """Write a concrete trial scenario as a complete scenario file at path."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    header = (f'# dual_arm_eval: trial {index} drawn from {source}; a complete scenario, '
+    origin = f'trial {index} drawn from {source}' if drawn else f'{source} run as it stands'
+    header = (f'# dual_arm_eval: {origin}; a complete scenario, '
               f'runnable with dual_arm_bringup --scenario <this file>.\n')
     path.write_text(header + yaml.safe_dump(scenario_document(trial), sort_keys=False,
                                             default_flow_style=None))
@@ -78,6 +79,12 @@ def parse_arguments(argv=None):
                              'graph trial gets a ROS domain of its own')
     parser.add_argument('--seed', type=int,
                         help="base seed of the draws (default: the scenario file's seed)")
+    parser.add_argument('--as-is', action='store_true',
+                        help='run the scenario as it stands, one trial drawing nothing from it '
+                             '(its own seed is the sensor-noise seed): re-runs '
+                             'trial_NNN/scenario.yaml of a batch exactly, e.g. with '
+                             '--keep-trajectories; needs --trials 1 and a scenario without a '
+                             'randomization block')
     parser.add_argument('--keep-trajectories', action='store_true',
                         help="keep each trial's ground-truth trajectory.npz")
     parser.add_argument('--trial-timeout', type=float, default=600.0,
@@ -96,6 +103,8 @@ def _check_arguments(args):
         return f'--jobs must be >= 1, got {args.jobs}'
     if args.seed is not None and args.seed < 0:
         return f'--seed must be >= 0, got {args.seed}'
+    if args.as_is and args.trials != 1:
+        return f'--as-is runs one trial, got --trials {args.trials}'
     if args.trial_timeout <= 0.0:
         return f'--trial-timeout must be > 0 s, got {args.trial_timeout:g}'
     if args.domain_base is not None and args.domain_base < 0:
@@ -115,7 +124,11 @@ def main(argv=None):
         scenario = load_scenario(args.scenario, cell=cell)
         if args.seed is not None:
             scenario = replace(scenario, seed=args.seed)
-        trials = [sample_trial(scenario, index, cell) for index in range(args.trials)]
+        if args.as_is and scenario.randomization is not None:
+            raise ConfigError(f'{args.scenario}: --as-is needs a scenario without a '
+                              'randomization block (a trial_NNN/scenario.yaml of a batch)')
+        trials = ([scenario] if args.as_is else
+                  [sample_trial(scenario, index, cell) for index in range(args.trials)])
     except ConfigError as error:
         print(f'dual_arm_eval: {error}', file=sys.stderr)
         return EXIT_USER_ERROR
@@ -135,7 +148,7 @@ def main(argv=None):
     files = []
     for index, trial in enumerate(trials):
         files.append(trial_directory(args.out, index) / 'scenario.yaml')
-        write_trial_scenario(trial, files[-1], source, index)
+        write_trial_scenario(trial, files[-1], source, index, drawn=not args.as_is)
     started = time.monotonic()
     with tqdm(total=args.trials, file=sys.stderr, unit='trial',
               desc=f'{scenario.name} ({args.runner}, {jobs} jobs)') as progress:
