@@ -71,34 +71,32 @@ def grab_metrics(data, contact_index, directions):
     return result
 
 
-def grab_failures(result, impact_speed):
+def grab_misses(result, impact_speed):
     """
-    Return the grab criteria result misses, each as text (empty: the grab succeeded).
+    Return the grab criteria result misses: [(key, value, limit, detail)] (empty: succeeded).
 
-    Both relative impact speeds within RELATIVE_IMPACT_LIMIT of impact_speed [m/s], and the
-    belt drag within BELT_DRAG_LIMIT.
+    Both relative impact speeds within RELATIVE_IMPACT_LIMIT of impact_speed [m/s] (value: the
+    relative error), and the belt drag within BELT_DRAG_LIMIT [m]. value is None where the
+    metric is missing (a pad that never touched).
     """
-    failures = []
+    misses = []
     for arm in ('left', 'right'):
-        speed = result.get(f'impact_speed_relative_{arm}')
+        key = f'impact_speed_relative_{arm}'
+        speed = result.get(key)
         if speed is None:
-            failures.append(f'no relative impact speed of the {arm} pad')
-        elif abs(speed - impact_speed) > RELATIVE_IMPACT_LIMIT * impact_speed:
-            off = 100.0 * abs(speed - impact_speed) / impact_speed
-            limit = 100.0 * RELATIVE_IMPACT_LIMIT
-            digits = 1 if round(off, 1) > limit else 3
-            failures.append(
-                f'impact_speed_relative_{arm} {off:.{digits}f} % '
-                f'{"slow" if speed < impact_speed else "fast"} > {limit:g} % '
-                f'({speed:.{digits + 2}f} m/s for {impact_speed:g})')
+            misses.append((key, None, RELATIVE_IMPACT_LIMIT, 'no contact'))
+            continue
+        error = abs(speed - impact_speed) / impact_speed
+        if error > RELATIVE_IMPACT_LIMIT:
+            misses.append((key, error, RELATIVE_IMPACT_LIMIT,
+                           f'{speed:.4g} m/s for {impact_speed:g}: '
+                           f'{"slow" if speed < impact_speed else "fast"}'))
     drag = result.get('belt_drag')
-    if drag is None:
-        failures.append('no belt drag: the pads did not both touch')
-    elif drag > BELT_DRAG_LIMIT:
-        failures.append(f'belt_drag {drag:.4g} > {BELT_DRAG_LIMIT:g} m')
-    return failures
+    if drag is None or drag > BELT_DRAG_LIMIT:
+        misses.append(('belt_drag', drag, BELT_DRAG_LIMIT, 'm'))
+    return misses
 
 
 def grab_succeeded(result, impact_speed):
     """Return True if both relative impact speeds are within the limit and the drag is too."""
-    return not grab_failures(result, impact_speed)
+    return not grab_misses(result, impact_speed)

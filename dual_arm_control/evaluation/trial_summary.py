@@ -13,7 +13,7 @@ from dual_arm_control.evaluation.episode import (CONTACT_GAP_LIMIT, LANDING_LIMI
                                                  RELEASE_ORIENTATION_LIMIT,
                                                  RELEASE_POSITION_LIMIT, RELEASE_VELOCITY_LIMIT,
                                                  SLIP_LIMIT)
-from dual_arm_control.evaluation.grab_metrics import grab_failures
+from dual_arm_control.evaluation.grab_metrics import grab_misses
 from dual_arm_control.scenario import PLACE_TASKS, TOSS_TASKS
 import numpy as np
 
@@ -85,6 +85,15 @@ def _exceeds(key, value, limit, unit):
     return f'{key} {text} > {limit:g}{" " + unit if unit else ""}'
 
 
+def _grab_reason(key, value, limit, detail):
+    """Return the text of one missed grab criterion (grab_metrics.grab_misses)."""
+    if value is None:
+        return f'no {key}'
+    if key == 'belt_drag':
+        return _exceeds(key, value, limit, detail)
+    return f'{_exceeds(key, value, limit, "")} ({detail})'
+
+
 def failure_reason(task, metrics, grab_impact_speed=None):
     """
     Return why a finished trial of task failed its success criteria (evaluation/episode.py).
@@ -117,7 +126,7 @@ def failure_reason(task, metrics, grab_impact_speed=None):
         reasons.append(f'box lost in the carry: both pads off {let_go - left:.3f} s before the '
                        'task let go')
     if grab_impact_speed is not None and gap is not None:
-        reasons.extend(grab_failures(metrics, grab_impact_speed))
+        reasons.extend(_grab_reason(*miss) for miss in grab_misses(metrics, grab_impact_speed))
     checks = [('max_slip', SLIP_LIMIT, 'm')]
     if task in TOSS_TASKS:
         checks += [('release_position_error', RELEASE_POSITION_LIMIT, 'm'),
