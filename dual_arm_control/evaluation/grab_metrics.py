@@ -73,27 +73,25 @@ def grab_metrics(data, contact_index, directions):
 
 def grab_misses(result, impact_speed):
     """
-    Return the grab criteria result misses: [(key, value, limit, detail)] (empty: succeeded).
+    Return the grab criteria result misses: [(key, value, limit, unit, detail)] (empty: none).
 
     Both relative impact speeds within RELATIVE_IMPACT_LIMIT of impact_speed [m/s] (value: the
-    relative error), and the belt drag within BELT_DRAG_LIMIT [m]. value is None where the
-    metric is missing (a pad that never touched).
+    relative error, detail: the speed and its side), and the belt drag within BELT_DRAG_LIMIT
+    [m]. value is None where the metric is missing (a pad that never touched).
     """
     misses = []
     for arm in ('left', 'right'):
         key = f'impact_speed_relative_{arm}'
         speed = result.get(key)
-        if speed is None:
-            misses.append((key, None, RELATIVE_IMPACT_LIMIT, 'no contact'))
-            continue
-        error = abs(speed - impact_speed) / impact_speed
-        if error > RELATIVE_IMPACT_LIMIT:
-            misses.append((key, error, RELATIVE_IMPACT_LIMIT,
-                           f'{speed:.4g} m/s for {impact_speed:g}: '
-                           f'{"slow" if speed < impact_speed else "fast"}'))
+        error = None if speed is None else abs(speed - impact_speed) / impact_speed
+        if error is None or error > RELATIVE_IMPACT_LIMIT:
+            detail = None if speed is None else (
+                f'{speed:.4g} m/s for {impact_speed:g}: '
+                f'{"slow" if speed < impact_speed else "fast"}')
+            misses.append((key, error, RELATIVE_IMPACT_LIMIT, '', detail))
     drag = result.get('belt_drag')
     if drag is None or drag > BELT_DRAG_LIMIT:
-        misses.append(('belt_drag', drag, BELT_DRAG_LIMIT, 'm'))
+        misses.append(('belt_drag', drag, BELT_DRAG_LIMIT, 'm', None))
     return misses
 
 

@@ -85,13 +85,11 @@ def _exceeds(key, value, limit, unit):
     return f'{key} {text} > {limit:g}{" " + unit if unit else ""}'
 
 
-def _grab_reason(key, value, limit, detail):
+def _grab_reason(key, value, limit, unit, detail):
     """Return the text of one missed grab criterion (grab_metrics.grab_misses)."""
     if value is None:
         return f'no {key}'
-    if key == 'belt_drag':
-        return _exceeds(key, value, limit, detail)
-    return f'{_exceeds(key, value, limit, "")} ({detail})'
+    return _exceeds(key, value, limit, unit) + ('' if detail is None else f' ({detail})')
 
 
 def failure_reason(task, metrics, grab_impact_speed=None):
