@@ -16,7 +16,8 @@ from dual_arm_control.core.grasp import grasp_frame
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation import metrics, plots
 from dual_arm_control.evaluation.container_metrics import container_metrics
-from dual_arm_control.evaluation.grab_metrics import grab_metrics, grab_succeeded
+from dual_arm_control.evaluation.grab_metrics import (belt_grab_impact_speed, grab_metrics,
+                                                      grab_succeeded)
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import (motion_config_for_scenario,
                                                     planned_landing, planned_release,
@@ -203,8 +204,8 @@ def _success(scenario, result):
     no_slip = result['max_slip'] is not None and result['max_slip'] <= SLIP_LIMIT
     if result['arm_collision_count']:
         return False
-    if scenario.incoming_belt is not None and not grab_succeeded(result,
-                                                                 scenario.speeds.impact):
+    grab_speed = belt_grab_impact_speed(scenario)
+    if grab_speed is not None and not grab_succeeded(result, grab_speed):
         return False
     if scenario.task in TOSS_TASKS and scenario.conveyor is not None:
         return grasped and no_slip and bool(result['landed_in_container'])

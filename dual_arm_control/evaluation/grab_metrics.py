@@ -71,6 +71,11 @@ def grab_metrics(data, contact_index, directions):
     return result
 
 
+def belt_grab_impact_speed(scenario):
+    """Return the desired impact speed [m/s] of a scenario's grab from the belt, else None."""
+    return None if scenario.incoming_belt is None else scenario.speeds.impact
+
+
 def grab_misses(result, impact_speed):
     """
     Return the grab criteria result misses: [(key, value, limit, unit, detail)] (empty: none).

@@ -19,6 +19,7 @@ import time
 
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.description.cell import load_cell
+from dual_arm_control.evaluation.grab_metrics import belt_grab_impact_speed
 from dual_arm_control.evaluation.trial_plots import plot_batch
 from dual_arm_control.evaluation.trial_runs import default_jobs, run_trials
 from dual_arm_control.evaluation.trial_summary import failure_reason, succeeded, summarize
@@ -47,11 +48,6 @@ def write_trial_scenario(trial, path, source, index, drawn=True):
               f'runnable with dual_arm_bringup --scenario <this file>.\n')
     path.write_text(header + yaml.safe_dump(scenario_document(trial), sort_keys=False,
                                             default_flow_style=None))
-
-
-def _grab_impact_speed(trial):
-    """Return the desired impact speed [m/s] of a grab from the incoming belt, else None."""
-    return None if trial.incoming_belt is None else trial.speeds.impact
 
 
 def parse_arguments(argv=None):
@@ -158,7 +154,8 @@ def main(argv=None):
     aggregate = summarize([outcome.metrics for outcome in outcomes])
     failures = [{'trial': outcome.index,
                  'reason': outcome.error or failure_reason(
-                     scenario.task, outcome.metrics, _grab_impact_speed(trials[outcome.index]))}
+                     scenario.task, outcome.metrics,
+                     belt_grab_impact_speed(trials[outcome.index]))}
                 for outcome in outcomes if not succeeded(outcome)]
     summary = {'scenario': str(source), 'runner': args.runner, 'trials': aggregate['trials'],
                'jobs': jobs, 'seed': scenario.seed, 'success_rate': aggregate['success_rate'],
