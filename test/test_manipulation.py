@@ -136,7 +136,9 @@ def test_a_given_release_orientation_is_turned_to_at_its_own_rate():
     given = TossConfig(orientation='given', orientation_rate=5.0, release_orientation_rate=20.0)
     held = replace(given, orientation='hold')
     assert object_orientation_ds(given, 3.0).convergence_rates == (20.0,) * 3
-    assert object_orientation_ds(held, 3.0).convergence_rates == (5.0,) * 3
+    assert object_orientation_ds(held, 3.0).convergence_rates == (5.0, 5.0, 4.0)
+    assert object_orientation_ds(replace(held, orientation='level'), 3.0).convergence_rates \
+        == (5.0,) * 3
 
 
 def test_a_box_to_be_set_down_turns_to_the_place_yaw_no_faster_than_the_place_allows():
