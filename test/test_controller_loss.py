@@ -77,12 +77,13 @@ def test_without_the_motion_generator_halt_the_living_arm_carries_on(tmp_path):
     """
     The robot's hold alone cannot stop the task: the partner arm carries the box on.
 
-    It drags the held arm's tool along (0.42 m/s against the 0.05 m/s of a settled arm; 0.68
-    m/s before the held box was read from the pads, core.held_object) and the box leaves both
+    It drags the held arm's tool along, at several times the 0.05 m/s of a settled arm (0.23
+    m/s since the held box turns until no wrist overreaches, 2026-11-29; 0.42 m/s before; 0.68
+    m/s before the held box was read from the pads, core.held_object), and the box leaves both
     pads (dropped, or tossed on by the living arm near the planned release).
     """
     outcome, data = kill_while_carrying(tmp_path, controller_timeout=0.0)
-    assert outcome.worst_tool_speed > 5.0 * SETTLED_TOOL_SPEED
+    assert outcome.worst_tool_speed > 3.0 * SETTLED_TOOL_SPEED
     assert not any(bool(data[f'{arm}_pad_contact'][-1]) for arm in ARMS)
     assert not outcome.held
 
