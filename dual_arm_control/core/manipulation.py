@@ -113,7 +113,8 @@ class TossConfig:
         size=3)
     orientation_rate: float = setting(
         12.0, "Convergence rate of the object's orientation while carried (the appendix-A "
-        'orientation DS applied to the object) in the hold and level modes: the toss carries '
+        'orientation DS applied to the object) in the level mode, and of its roll and pitch in '
+        'the hold mode (its yaw: hold_turn_rate): the toss carries '
         'the box for about 0.35 s, in which 12/s leaves 1.5 % of an error (catalogue_random '
         'seed 11, 300 trials, bases 1.2 m apart: 242 succeed at 12/s, 236 at 16/s).',
         unit='1/s', low=0, high=50.0, low_open=True)
