@@ -197,8 +197,8 @@ def test_solution_is_the_certified_optimum_of_eq_10():
 
 @pytest.mark.parametrize('mass, friction_needs_more', [
     (0.7, False),   # m g / 2 = 3.4 N of tangential force: the minimum squeeze holds it
-    (2.0, False),   # 9.8 N < 0.42 * 30 N (mu 0.6)
-    (3.5, True),    # 17.2 N needs 40.5 N at mu 0.6, within the 45 N bound
+    (5.0, False),   # 24.5 N < 0.42 * 70 N (mu 0.6)
+    (8.0, True),    # 39.2 N needs 92.5 N at mu 0.6, within the 105 N bound
 ])
 def test_squeeze_is_the_minimum_friction_requires(mass, friction_needs_more):
     # Horizontal pads at the height of the centre of mass holding a box against gravity: by
@@ -226,7 +226,7 @@ def test_squeeze_is_the_minimum_friction_requires(mass, friction_needs_more):
 
 
 def test_wrench_beyond_friction_capacity_is_reported_through_slack():
-    # 6.5 kg needs 50 N of normal force per pad, above the 45 N bound.
+    # 14 kg needs 162 N of normal force per pad, above the 105 N bound.
     contacts = {}
     for arm, sign in (('left', 1.0), ('right', -1.0)):
         z_axis = np.array([0.0, -sign, 0.0])
@@ -234,11 +234,11 @@ def test_wrench_beyond_friction_capacity_is_reported_through_slack():
                                        z_axis))
         contacts[arm] = PadContact(np.array([0.5, sign * 0.1, 0.3]), R_world_pad, 0.0)
     config = WrenchQPConfig()
-    object_wrench = np.array([0.0, 0.0, 6.5 * GRAVITY, 0.0, 0.0, 0.0])
+    object_wrench = np.array([0.0, 0.0, 14.0 * GRAVITY, 0.0, 0.0, 0.0])
     result = ContactWrenchQP(config).contact_wrenches(object_wrench, [0.5, 0.0, 0.3], contacts)
     capacity = 2.0 * config.max_normal_force * config.friction_coefficient / math.sqrt(2.0)
     assert not result.feasible
-    assert result.slack[2] == pytest.approx(6.5 * GRAVITY - capacity, abs=1e-6)
+    assert result.slack[2] == pytest.approx(14.0 * GRAVITY - capacity, abs=1e-6)
     for arm in PAD_ORDER:
         assert constraint_violation(result.wrenches[arm], contacts[arm], config) < 1e-6
 
