@@ -3,13 +3,17 @@
 import json
 import math
 
+from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.ballistics import landing_without_drag
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.toss_planning import ReleasePlanningConfig
 from dual_arm_control.description.cell import arm_model, load_cell
-from dual_arm_control.evaluation import experiment_metrics, experiment_tosses, experiments
+from dual_arm_control.evaluation import (experiment_catalogue, experiment_metrics,
+                                         experiment_tosses, experiments)
 from dual_arm_control.evaluation import paper_results, report, workspace
+from dual_arm_control.evaluation.experiment_runs import ExperimentError
 from dual_arm_control.evaluation.report_sections import CATALOGUE_FOLDERS
+from dual_arm_control.scenario import load_scenario, scenario_path
 import numpy as np
 import pytest
 
@@ -368,3 +372,48 @@ def test_the_served_region_corners_are_served_and_nothing_beyond_them_is():
     # The 1.8 m/s, 60 deg, 1 m/s sideways planner from the release region x 0.60-0.68, z
     # 0.40-0.50 m: 0.37 m^2 on this table (0.21 m^2 with a 1.3 m/s cap).
     assert 0.3 <= hull_area <= 0.45
+
+
+def test_friction_ratio_is_the_tangential_force_over_mu_times_the_normal_one():
+    normal = np.array([0.0, -1.0, 0.0])
+    ratio = experiment_catalogue.friction_ratio
+    assert ratio([3.0, -10.0, 4.0], normal, 0.5) == pytest.approx(1.0)
+    assert ratio([0.0, -10.0, 0.0], normal, 0.5) == 0.0
+    assert ratio([3.0, -10.0, 4.0], normal, 1.0) == pytest.approx(0.5)
+    assert ratio([1.0, 2.0, 0.0], normal, 0.5) == math.inf
+
+
+def test_each_catalogue_box_replaces_the_paper_cube_at_its_pose(tmp_path):
+    cell = load_cell()
+    catalogue = load_catalogue()
+    for task in experiment_catalogue.TASKS:
+        base = load_scenario(task, cell)
+        for name, entry in catalogue.items():
+            path = tmp_path / f'{name}_{task}.yaml'
+            path.write_text(experiment_catalogue.grasp_scenario_text(
+                scenario_path(task).read_text(), name))
+            scenario = load_scenario(path, cell)
+            assert scenario.object.type == name and scenario.object.mass == entry.mass
+            np.testing.assert_allclose(scenario.object.position[:2], base.object.position[:2])
+            assert scenario.object.yaw == base.object.yaw and scenario.task == base.task
+    with pytest.raises(ExperimentError, match='no paper_cube'):
+        experiment_catalogue.grasp_scenario_text('object:\n  type: cube_160\n', 'open_box')
+
+
+def test_report_renders_the_catalogue_grasps(tmp_path):
+    folder = tmp_path / 'catalogue_grasps'
+    folder.mkdir()
+    row = {'object': 'open_box', 'task': 'paper_place', 'mass': 4.5, 'friction': 0.9,
+           'success': True, 'max_slip': 0.0021, 'contact_time_gap': 0.002,
+           'place_position_error': 0.001, 'landing_error': None,
+           'planned_friction_ratio_design': 0.55, 'planned_friction_ratio': 0.37,
+           'measured_friction_ratio': 0.81, 'measured_friction_ratio_p95': 0.4}
+    (folder / 'results.json').write_text(json.dumps({
+        'experiment': 'catalogue_grasps', 'wall_time': 600.0, 'limited': False,
+        'qp_friction_coefficient': 0.6, 'runs': [row, dict(row, task='paper_toss',
+                                                           measured_friction_ratio=0.9)]}))
+    text = report.render_report(report.load_results(tmp_path))
+    section = text.split('## 4c.')[1].split('\n## ')[0]
+    assert ('| open_box | paper_place | 4.5 kg | 0.90 | yes | 2.1 mm | 2 ms | 0.55 | 0.37 | '
+            '0.81 | 0.40 |') in section
+    assert 'Worst ratio over the runs: planned 0.37, measured 0.90.' in section

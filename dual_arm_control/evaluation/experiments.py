@@ -3,8 +3,9 @@ dual_arm_experiment: regenerate the paper's experiments 1, 2, 3 and 5 and docs/r
 
 `dual_arm_experiment NAME [--out DIR]`, NAME one of fast_toss (IV-A, Figures 6-7: the node graph
 via dual_arm_bringup), toss_workspace (Figure 8), place_vs_toss (IV-B, Figures 9-10),
-toss_to_target (landing error over the front table), report (docs/results.md from the JSON
-files) or all (the four experiments into --results, then the report into --out). Each
+toss_to_target (landing error over the front table), catalogue_grasps (each catalogue box
+tossed and placed through the node graph), report (docs/results.md from the JSON
+files) or all (the five experiments into --results, then the report into --out). Each
 experiment writes OUT/results.json and its PNG plots; runs are deterministic (lockstep graph,
 in-process runner, fixed seeds).
 """
@@ -14,13 +15,15 @@ from pathlib import Path
 import sys
 
 from dual_arm_control.core.exceptions import ConfigError, DualArmControlError
+from dual_arm_control.evaluation.experiment_catalogue import run_catalogue_grasps
 from dual_arm_control.evaluation.experiment_place_vs_toss import REPEATS, run_place_vs_toss
 from dual_arm_control.evaluation.experiment_tosses import (run_fast_toss, run_toss_to_target,
                                                            run_toss_workspace)
 from dual_arm_control.evaluation.paper_results import EXPERIMENTS, RESULTS_FILE
 
 RUNNERS = {'fast_toss': run_fast_toss, 'toss_workspace': run_toss_workspace,
-           'place_vs_toss': run_place_vs_toss, 'toss_to_target': run_toss_to_target}
+           'place_vs_toss': run_place_vs_toss, 'toss_to_target': run_toss_to_target,
+           'catalogue_grasps': run_catalogue_grasps}
 
 
 def parse_arguments(argv=None):

@@ -1,6 +1,7 @@
 """The paper's experiments and numbers, what both the experiments and the report read."""
 
-EXPERIMENTS = ('fast_toss', 'toss_workspace', 'place_vs_toss', 'toss_to_target')
+EXPERIMENTS = ('fast_toss', 'toss_workspace', 'place_vs_toss', 'toss_to_target',
+               'catalogue_grasps')
 RESULTS_FILE = 'results.json'
 
 # The paper's numbers (Bombile & Billard 2022, section IV), one place for the report.

@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from dual_arm_control.evaluation.paper_results import EXPERIMENTS, RESULTS_FILE
+from dual_arm_control.evaluation.report_catalogue_grasps import catalogue_grasps_section
 from dual_arm_control.evaluation.report_conveyor import (CONVEYOR_FOLDER, conveyor_section,
                                                          load_batch)
 from dual_arm_control.evaluation.report_conveyor_grab import conveyor_grab_section, GRAB_FOLDER
@@ -76,7 +77,8 @@ def render_report(results, link_root='results'):
         'Wall times: ' + (', '.join(f'{name} {wall}' for name, wall in walls) or MISSING) + '.',
         '']
     for section in (fast_toss_section, workspace_section, place_vs_toss_section,
-                    robustness_section, catalogue_section, toss_to_target_section,
+                    robustness_section, catalogue_section, catalogue_grasps_section,
+                    toss_to_target_section,
                     conveyor_section, conveyor_grab_section):
         lines += section(results, link_root)
     return '\n'.join(lines).rstrip() + '\n'
