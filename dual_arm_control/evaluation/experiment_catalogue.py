@@ -7,8 +7,7 @@ lockstep, topics recorded). Per run: the outcome and the slip (metrics.json), an
 the friction cone the pads use while they hold the box (CONTACT and MANIPULATE), twice:
 - planned: the wrench QP's pad wrenches (the contact_wrench topics), tangential over normal
   force in the pad's frame against the QP's design friction (its pyramid, eq. 10, allows
-  1/sqrt 2 along each tangent: sqrt 2 / 2 ~ 0.71 at most across both) and against the
-  box's own friction;
+  1 / sqrt 2 ~ 0.71 along one tangent, 1 at its corners) and against the box's own friction;
 - measured: the MuJoCo contact force of each pad on the box against the box's friction, its
   worst and its 95th percentile over the samples (the worst falls in the impact and release
   transients).

@@ -22,9 +22,9 @@ def catalogue_grasps_section(results, link_root):
             'the box is held (below 1: inside the cone; 1 minus the ratio is the margin): '
             "planned, the wrench QP's pad wrenches (the `contact_wrench` topics) against the "
             "QP's design friction mu "
-            f'{number(run.get("qp_friction_coefficient"), 2)} (its pyramid allows at most '
-            "0.71) and against the box's; measured, the MuJoCo contact force of the pad on the "
-            "box against the box's friction.", '']
+            f'{number(run.get("qp_friction_coefficient"), 2)} (its pyramid allows 0.71 along '
+            "one tangent, 1 at its corners) and against the box's; measured, the MuJoCo "
+            "contact force of the pad on the box against the box's friction.", '']
     rows = [(row['object'], row['task'], number(row['mass'], 1, unit='kg'),
              number(row['friction'], 2), 'yes' if row['success'] else 'no',
              number(row['max_slip'], 1, 1000.0, 'mm'),
