@@ -14,9 +14,7 @@ the friction cone the pads use while they hold the box (CONTACT and MANIPULATE),
 A ratio below 1 is inside the cone; 1 - ratio is the margin left.
 """
 
-import json
 from pathlib import Path
-import subprocess
 import tempfile
 import time
 
@@ -27,7 +25,7 @@ from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.wrench_qp import WrenchQPConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.experiment_runs import (ExperimentError, results_header,
-                                                         write_results)
+                                                         run_graph_episode, write_results)
 from dual_arm_control.nodes.bag_record import message_class
 from dual_arm_control.scenario import scenario_path
 import numpy as np
@@ -67,7 +65,6 @@ def grasp_scenario_text(base_text, object_type):
 
 def run_catalogue_grasps(out_dir, limit=None, timeout=600.0):
     """Run every catalogue box (the first limit) tossed and placed; write results.json."""
-    from dual_arm_control.bringup import executable_command
     started = time.monotonic()
     cell = load_cell()
     models = {arm: arm_model(arm, cell) for arm in ARMS}
@@ -83,21 +80,7 @@ def run_catalogue_grasps(out_dir, limit=None, timeout=600.0):
                 scenario = folder / 'scenario.yaml'
                 scenario.write_text(grasp_scenario_text(
                     scenario_path(task).read_text(), name))
-                command = executable_command('dual_arm_bringup') + [
-                    '--scenario', str(scenario), '--out', str(folder), '--mode', 'lockstep',
-                    '--timeout', str(timeout), '--record']
-                try:
-                    completed = subprocess.run(command, capture_output=True, text=True,
-                                               timeout=timeout + 60.0)
-                except subprocess.TimeoutExpired:
-                    raise ExperimentError(
-                        f'dual_arm_bringup did not finish in {timeout + 60:g} s') from None
-                metrics_path = folder / 'metrics.json'
-                if completed.returncode not in (0, 1) or not metrics_path.is_file():
-                    last = (completed.stderr.strip().splitlines() or ['no output'])[-1]
-                    raise ExperimentError(
-                        f'dual_arm_bringup exited {completed.returncode}: {last}')
-                metrics = json.loads(metrics_path.read_text())
+                metrics = run_graph_episode(scenario, folder, timeout, record=True)
                 friction = catalogue[name].friction
                 planned = _planned_ratios(folder, models, qp_friction, friction)
                 measured = _measured_ratios(folder / 'trajectory.npz', models, friction)

@@ -8,10 +8,8 @@ writes OUT/results.json and its plots.
 """
 
 from dataclasses import replace
-import json
 import math
 from pathlib import Path
-import subprocess
 import tempfile
 import time
 
@@ -25,7 +23,7 @@ from dual_arm_control.evaluation import workspace
 from dual_arm_control.evaluation.episode import LANDING_LIMIT
 from dual_arm_control.evaluation.experiment_metrics import (landing_targets, longest_toss,
                                                             served_region_corners, statistics)
-from dual_arm_control.evaluation.experiment_runs import (ExperimentError, results_header,
+from dual_arm_control.evaluation.experiment_runs import (results_header, run_graph_episode,
                                                          run_inprocess_episode, write_results)
 from dual_arm_control.graph import EPISODE_START_TIME
 from dual_arm_control.runtime.configuration import motion_config_for_scenario
@@ -58,27 +56,13 @@ def _events(result):
 
 def run_fast_toss(out_dir, limit=None, timeout=600.0):
     """Experiment 1: paper_toss on the node graph (dual_arm_bringup, lockstep); Figures 6-7."""
-    from dual_arm_control.bringup import executable_command
     started = time.monotonic()
     cell = load_cell()
     path = scenario_path('paper_toss')
     with tempfile.TemporaryDirectory(prefix='fast_toss_') as tmp:
-        command = executable_command('dual_arm_bringup') + [
-            '--scenario', str(path), '--out', tmp, '--mode', 'lockstep', '--timeout',
-            str(timeout)]
         graph_started = time.monotonic()
-        try:
-            completed = subprocess.run(command, capture_output=True, text=True,
-                                       timeout=timeout + 60.0)
-        except subprocess.TimeoutExpired:
-            raise ExperimentError(
-                f'dual_arm_bringup did not finish in {timeout + 60:g} s') from None
+        graph_metrics = run_graph_episode(path, tmp, timeout)
         graph_wall = time.monotonic() - graph_started
-        metrics_path = Path(tmp) / 'metrics.json'
-        if completed.returncode not in (0, 1) or not metrics_path.is_file():
-            last = (completed.stderr.strip().splitlines() or ['no output'])[-1]
-            raise ExperimentError(f'dual_arm_bringup exited {completed.returncode}: {last}')
-        graph_metrics = json.loads(metrics_path.read_text())
         data = load_trajectory(Path(tmp) / 'trajectory.npz')
     data = dict(data, t=data['t'] - EPISODE_START_TIME)
     scenario = load_scenario(path, cell=cell)
@@ -99,7 +83,7 @@ def run_fast_toss(out_dir, limit=None, timeout=600.0):
     object_speed = np.linalg.norm(data['object_velocity'][grasped], axis=1)
     results = results_header('fast_toss', 'dual_arm_bringup (node graph, lockstep)', started, None)
     results.update({
-        'scenario': 'paper_toss', 'graph_exit_code': completed.returncode,
+        'scenario': 'paper_toss',
         'graph_wall_time': graph_wall, 'metrics': graph_metrics,
         'desired_release': {'position': scenario.release.position.tolist(),
                             'velocity': scenario.release.velocity.tolist()},
