@@ -76,7 +76,7 @@ def test_clock_follows_the_bag_log_time_and_drives_a_sim_time_node(tmp_path, ros
     try:
         player = subprocess.Popen(
             [str(SCRIPTS / 'bag_play'), str(bag), '--clock', str(CLOCK_HZ),
-             '--wait-for-subscribers', '--settle', '0.5'], stdout=subprocess.PIPE,
+             '--wait-for-subscribers', '--settle', '2.0'], stdout=subprocess.PIPE,
             stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL,
             env=ros_environment(ros_domain))
         probe.spin_until(lambda: player.poll() is not None, PLAY_TIMEOUT)
