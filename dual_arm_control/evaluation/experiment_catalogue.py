@@ -26,10 +26,9 @@ from dual_arm_control.core.wrench_qp import WrenchQPConfig
 from dual_arm_control.description.cell import arm_model, load_cell
 from dual_arm_control.evaluation.experiment_runs import (ExperimentError, results_header,
                                                          run_graph_episode, write_results)
-from dual_arm_control.nodes.bag_record import message_class
 from dual_arm_control.scenario import scenario_path
+from dual_arm_control.tools.episode_bag import decoded_messages
 import numpy as np
-from rclpy.serialization import deserialize_message
 
 TASKS = ('paper_toss', 'paper_place')
 GRASP_PHASES = ('contact', 'manipulate')
@@ -102,19 +101,16 @@ def _planned_ratios(folder, models, qp_friction, friction):
     reader = BagReader(folder / 'bag.mcap')
     joints = {contract.JOINT_STATES.resolved(arm): arm for arm in ARMS}
     wrenches = {contract.CONTACT_WRENCH.resolved(arm): arm for arm in ARMS}
-    classes, latest_q, phase = {}, {}, None
+    latest_q, phase = {}, None
     design = actual = 0.0
-    for record in reader.messages([contract.PHASE.name, *joints, *wrenches]):
-        if record.type_name not in classes:
-            classes[record.type_name] = message_class(record.type_name)
-        msg = deserialize_message(record.data, classes[record.type_name])
-        if record.topic == contract.PHASE.name:
+    for topic, msg, _ in decoded_messages(reader, [contract.PHASE.name, *joints, *wrenches]):
+        if topic == contract.PHASE.name:
             phase = next((status.message for status in msg.status
                           if status.name == contract.PHASE_STATUS_NAME), phase)
-        elif record.topic in joints:
-            latest_q[joints[record.topic]] = np.array(msg.position[:7])
-        elif phase in GRASP_PHASES and wrenches[record.topic] in latest_q:
-            arm = wrenches[record.topic]
+        elif topic in joints:
+            latest_q[joints[topic]] = np.array(msg.position[:7])
+        elif phase in GRASP_PHASES and wrenches[topic] in latest_q:
+            arm = wrenches[topic]
             force = np.array([msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z])
             normal = models[arm].tool_pose(latest_q[arm])[1][:, 2]
             if force @ normal < HOLDING_FORCE:

@@ -129,12 +129,12 @@ def _read_bag(path, topics):
     try:
         reader = BagReader(path)
         recorded = reader.metadata(METADATA_NAME) or {}
-        return list(_messages(reader, topics)), recorded.get('scenario') or None
+        return list(decoded_messages(reader, topics)), recorded.get('scenario') or None
     except (BagError, ValueError, EOFError) as error:
         raise InputError(f'bag {path} cannot be read: {error}') from None
 
 
-def _messages(reader, topics):
+def decoded_messages(reader, topics):
     """Yield (topic, message, log_time_ns) of a BagReader's topics, in log-time order."""
     classes = {}
     for message in reader.messages(topics):
