@@ -280,6 +280,11 @@ def test_failure_reasons_name_the_criteria():
         'contact_time_gap 0.02 > 0.01 s'
     assert failure_reason('pick_and_place', {'contact_time_gap': 0.002, 't_grasp': 1.0,
                                              't_release': None}) == 'no release'
+    # Issue 11 sets a box down within 2 cm of its place.
+    assert failure_reason('pick_and_place', {'contact_time_gap': 0.002, 't_grasp': 1.0,
+                                             't_release': 1.5,
+                                             'place_position_error': 0.0215}) == \
+        'place_position_error 0.0215 > 0.02 m'
 
 
 def test_a_grab_from_the_belt_names_the_pad_that_struck_off_speed():
