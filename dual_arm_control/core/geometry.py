@@ -72,21 +72,6 @@ def orthonormal_basis(first_axis):
     return np.column_stack((e1, e2, e3))
 
 
-def level_basis(first_axis):
-    """
-    Return a right-handed (3, 3) basis [e1 e2 e3] with e1 along first_axis and e2 horizontal.
-
-    e2 = unit(world z x e1) points to the left of e1 seen from above, e3 = e1 x e2 upward; a
-    vertical first_axis has no horizontal normal and gets orthonormal_basis.
-    """
-    e1 = unit(first_axis, 'first_axis')
-    left = cross3(np.array([0.0, 0.0, 1.0]), e1)
-    if float(left @ left) < 1e-12:
-        return orthonormal_basis(e1)
-    e2 = unit(left)
-    return np.column_stack((e1, e2, cross3(e1, e2)))
-
-
 def quat_xyzw_to_matrix(quat_xyzw):
     """Return the rotation matrix of a (possibly unnormalised) quaternion (x, y, z, w)."""
     x, y, z, w = unit(quat_xyzw, 'quaternion').tolist()

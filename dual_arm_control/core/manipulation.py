@@ -11,10 +11,9 @@ from typing import NamedTuple
 
 from dual_arm_control.core.cooperative import absolute_relative, left_right
 from dual_arm_control.core.exceptions import ConfigError
-from dual_arm_control.core.geometry import (
-    cross3, level_basis, matrix_to_rpy, rpy_to_matrix, unit)
+from dual_arm_control.core.geometry import cross3, matrix_to_rpy, rpy_to_matrix, unit
 from dual_arm_control.core.modulation import (
-    activation_distances, activations, modulated_velocity,
+    activation_distances, activations, modulated_velocity, modulation_bases,
     ModulationRegionConfig, region_activations, RegionActivation, transitory_attractor)
 from dual_arm_control.core.orientation import orientation_ds_angular_velocity, OrientationDsConfig
 from dual_arm_control.core.settings import check_settings, setting
@@ -71,19 +70,6 @@ class TossConfig:
         'planned direction, with the rise 1.6 deg (toss_to_target_random seed 51, trial 96; '
         '195 of 200 succeed against 192).',
         unit='1/s', low=0, high=200.0)
-    lateral_arrival_lead: float = setting(
-        0.03, "How long before the release plane the box's horizontal offset from the release "
-        "line is to be gone: lateral_rate's rise aims at a plane this much earlier (at the "
-        'release speed), past which the horizontal rate is lateral_gain again. The held box '
-        "follows the field's sideways command some tens of ms late, and a rise aimed at the "
-        'release plane itself still asked for up to 30 times a millimetre offset as sideways '
-        'velocity when the pads opened (paper_toss_random seed 1, 200 trials: release '
-        'direction p95 3.37 deg without a lead, 2.51 with 0.03 s, landing median 9.2 and 6.5 '
-        'mm; fresh seed 4242, 100 trials: 3.65 and 2.55 deg). The vertical offset keeps the '
-        'rise up to the plane: with the lead there too the boxes left 1.5 deg steep on average '
-        '(direction p95 3.56 deg). Tosses to targets gain nothing: toss_to_target_random seed '
-        '3, 200 trials: 198 succeed against 200, landing p95 31 against 27 mm.',
-        unit='s', low=0, high=0.2)
     speed_integral_gain: float = setting(
         40.0, "Gain of the outer loop on the carried object's speed shortfall "
         "(SpeedErrorIntegrator); 0 turns the loop off. The held box's speed is read from the "
@@ -178,7 +164,7 @@ class TossGeometry(NamedTuple):
     release_position: np.ndarray
     """x_r (3,) [m]."""
     basis: np.ndarray
-    """E^o (1, 3, 3), e1 along the release velocity, e2 horizontal (geometry.level_basis)."""
+    """E^o (1, 3, 3), e1 along the release velocity."""
     transitory: np.ndarray
     """x_t^o (3,) [m], rho before x_r on the release line."""
     release_velocity: np.ndarray
@@ -189,8 +175,6 @@ class TossGeometry(NamedTuple):
     """k_n > 0 [1/s]; the target fields along e2, e3 are -k_n (x_o - x_t) far from x_r."""
     max_lateral_gain: float
     """[1/s] the most lateral_rate raises k_n to near the release plane."""
-    arrival_lead: float
-    """[m] how far before the release plane the horizontal offset's rise aims."""
     region: ModulationRegionConfig
 
 
@@ -210,14 +194,13 @@ def release_velocity(config):
 def toss_geometry(config, coordination):
     """Return the TossGeometry of a TossConfig; the gain is coordination.absolute_gain."""
     velocity = release_velocity(config)
-    basis = level_basis(velocity)[None]
+    basis = modulation_bases(velocity)
     position = np.asarray(config.release_position, dtype=float)
     transitory = transitory_attractor(position[None], basis,
                                       config.region.transitory_distance)[0]
     return TossGeometry(position, basis, transitory, velocity,
                         float(coordination.absolute_gain), float(config.lateral_gain),
-                        float(config.max_lateral_gain),
-                        float(config.lateral_arrival_lead * config.toss_speed), config.region)
+                        float(config.max_lateral_gain), config.region)
 
 
 def release_rotation(config):
@@ -277,7 +260,7 @@ def toss_attractor(x_object, geometry, gamma):
             + gamma * (x_object + geometry.release_velocity / geometry.gain))
 
 
-def lateral_rate(x_object, geometry, lead=0.0):
+def lateral_rate(x_object, geometry):
     """
     Return the rate [1/s] of the toss's target fields along e2, e3 at x_o (3,) [m].
 
@@ -285,12 +268,9 @@ def lateral_rate(x_object, geometry, lead=0.0):
     that decays at 2 v / s (s: what is left to the plane along e1) shrinks as s^2: it reaches
     the line with no sideways velocity at the plane, under a constant sideways deceleration.
     A constant k_n leaves k_n d of sideways velocity at release for an offset d still left.
-    The rate is k_n at least and max_lateral_gain at most (also at and past the plane). lead
-    [m] moves the plane the rise aims at that far back along e1; past it the rate is k_n.
+    The rate is k_n at least and max_lateral_gain at most (also at and past the plane).
     """
-    remaining = float((geometry.release_position - x_object) @ geometry.basis[0, :, 0]) - lead
-    if lead > 0.0 and remaining <= 0.0:
-        return geometry.lateral_gain
+    remaining = float((geometry.release_position - x_object) @ geometry.basis[0, :, 0])
     speed = float(np.linalg.norm(geometry.release_velocity))
     arrival = (geometry.max_lateral_gain if remaining <= 0.0
                else min(2.0 * speed / remaining, geometry.max_lateral_gain))
@@ -301,14 +281,12 @@ def toss_target_fields(x_object, geometry, gamma):
     """
     Return f_mi (1, 3, 3) [m/s]: A(x^o - x_*^o) along e1, -k_n (x^o - x_t^o) along e2, e3.
 
-    k_n is lateral_rate at x_o, along the horizontal e2 with the geometry's arrival_lead.
+    k_n is lateral_rate at x_o.
     """
     x_object = np.asarray(x_object, dtype=float)
     first = -geometry.gain * (x_object - toss_attractor(x_object, geometry, gamma))
-    offset = x_object - geometry.transitory
-    horizontal = -lateral_rate(x_object, geometry, geometry.arrival_lead) * offset
-    vertical = -lateral_rate(x_object, geometry) * offset
-    return np.stack((first, horizontal, vertical))[None]
+    other = -lateral_rate(x_object, geometry) * (x_object - geometry.transitory)
+    return np.stack((first, other, other))[None]
 
 
 def toss_velocity(x_object, geometry):
