@@ -64,6 +64,31 @@ def test_grasp_needs_sustained_contact_and_release_needs_both_pads_off():
     assert t[release] == pytest.approx(1.25)
 
 
+def test_grasp_segments_follow_each_grasp_to_its_release():
+    t = np.arange(0.0, 4.0, DT)
+    left = ((t >= 0.3) & (t < 1.2)) | ((t >= 2.0) & (t < 3.0))
+    right = ((t >= 0.3) & (t < 1.2)) | ((t >= 2.01) & (t < 3.5))
+    segments = metrics.grasp_segments(t, left, right)
+    assert [(t[grasp], t[release]) for grasp, release in segments] == [
+        pytest.approx((0.3, 1.2)), pytest.approx((2.01, 3.5))]
+    assert metrics.grasp_segments(t, left, np.zeros_like(left)) == []
+
+
+def test_a_regrasp_is_judged_by_its_worse_grasp():
+    """A place that grasps twice (contacts 1, then 6 cycles apart) reports the 6."""
+    from dual_arm_control.description.cell import load_cell
+    from dual_arm_control.evaluation.episode import episode_metrics
+    from dual_arm_control.scenario import load_scenario
+    data = synthetic_grasp_log(100, 101, samples=1200)
+    index = np.arange(1200)
+    data['left_pad_contact'] = ((index >= 100) & (index < 400)) | (index >= 700)
+    data['right_pad_contact'] = ((index >= 101) & (index < 400)) | (index >= 706)
+    result = episode_metrics(load_scenario('paper_place'), data, load_cell())
+    assert result['grasp_count'] == 2
+    assert result['contact_time_gap'] == round(6 * DT, 9)
+    assert result['t_grasp'] == pytest.approx(101 * DT)
+
+
 def test_no_release_while_one_pad_still_holds():
     t = np.arange(0.0, 2.0, DT)
     left = t >= 0.3

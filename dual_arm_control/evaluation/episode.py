@@ -36,7 +36,7 @@ METRIC_KEYS = (
     'max_joint_speed_ratio_left', 'max_joint_speed_ratio_right', 'joint_speed_limit_time_left',
     'joint_speed_limit_time_right', 'landing_error_in_container', 'landed_in_container',
     'impact_speed_relative_left', 'impact_speed_relative_right', 'belt_drag', 'start_refusal',
-    't_task_release',
+    't_task_release', 'grasp_count',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -90,6 +90,12 @@ def first_event(events, name):
                 (None, None))
 
 
+def last_event(events, name):
+    """Return (sim time [s], reason) of the last event called name, or (None, None)."""
+    return next(((time, reason) for time, names, reason in reversed(events) if name in names),
+                (None, None))
+
+
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=()):
     """
     Return the metrics dict of one episode; times count from start_time [s] of sim time.
@@ -101,7 +107,7 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=
     t = data['t'] - start_time
     result = dict.fromkeys(METRIC_KEYS + ('landing_prediction_error', 'place_speed'))
     result['start_refusal'] = first_event(events, 'unreachable')[1]
-    released_at = first_event(events, 'released')[0]
+    released_at = last_event(events, 'released')[0]
     result['t_task_release'] = None if released_at is None else released_at - start_time
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
     models = {arm: arm_model(arm, cell) for arm in ARMS}
@@ -116,19 +122,19 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=
             velocity, contact_index[arm], normals[arm])
     if scenario.incoming_belt is not None:
         result.update(grab_metrics(data, contact_index, directions))
-    if None not in contact_index.values():
-        # Rounded to whole nanoseconds: the stamps are multiples of the FRI period, and a 10 ms
-        # gap must not read 0.010000000000000009 s.
-        result['contact_time_gap'] = round(
-            abs(result['t_contact_left'] - result['t_contact_right']), 9)
-    grasp, release = metrics.grasp_and_release_indices(
-        t, data['left_pad_contact'], data['right_pad_contact'])
+    segments = metrics.grasp_segments(t, data['left_pad_contact'], data['right_pad_contact'])
+    if scenario.task not in PLACE_TASKS:
+        segments = segments[:1]
+    result['grasp_count'] = len(segments)
+    result['contact_time_gap'] = _contact_time_gap(t, data, contact_index, segments)
+    grasp = segments[0][0] if segments else None
+    release = segments[-1][1] if segments else None
     result['t_grasp'] = _time(t, grasp)
     result['t_release'] = _time(t, release)
     slips = [metrics.max_pad_slip(data[f'{arm}_tool_position'], data['object_position'],
-                                  data['object_quat_xyzw'], grasp, release or len(t))
-             for arm in ARMS]
-    result['max_slip'] = None if None in slips else max(slips)
+                                  data['object_quat_xyzw'], begin, end or len(t))
+             for begin, end in segments for arm in ARMS]
+    result['max_slip'] = None if None in slips or not slips else max(slips)
     if release is not None:
         p_release = data['object_position'][release]
         v_release = data['object_velocity'][release]
@@ -195,6 +201,22 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=
     result['sim_duration'] = float(data['t'][-1] - data['t'][0])
     result['success'] = bool(_success(scenario, result))
     return result
+
+
+def _contact_time_gap(t, data, contact_index, segments):
+    """
+    Return the largest gap [s] between the pads' first contacts of each grasp, or None.
+
+    A grasp after the first (a regrasp) counts its contacts from the previous release. Rounded
+    to whole nanoseconds: the stamps are multiples of the FRI period, and a 10 ms gap must not
+    read 0.010000000000000009 s.
+    """
+    firsts = [contact_index] + [
+        {arm: metrics.first_true_index(data[f'{arm}_pad_contact'], release) for arm in ARMS}
+        for (_, release), _ in zip(segments, segments[1:])]
+    gaps = [abs(t[first['left']] - t[first['right']]) for first in firsts
+            if None not in first.values()]
+    return round(float(max(gaps)), 9) if gaps else None
 
 
 def _success(scenario, result):

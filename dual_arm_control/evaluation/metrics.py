@@ -105,15 +105,29 @@ def impact_speed(tool_velocity, contact_index, direction=None):
     return float(velocity @ (np.asarray(direction) / np.linalg.norm(direction)))
 
 
-def grasp_and_release_indices(t, left_contact, right_contact, criteria=EventCriteria()):
-    """Return (grasp index, release index): both pads on, then both pads off, sustained."""
+def grasp_and_release_indices(t, left_contact, right_contact, criteria=EventCriteria(),
+                              start=0):
+    """Return (grasp index, release index): both pads on, then both off, sustained, >= start."""
     both_on = np.asarray(left_contact, bool) & np.asarray(right_contact, bool)
-    grasp = first_sustained_index(t, both_on, criteria.grasp_hold_time)
+    grasp = first_sustained_index(t, both_on, criteria.grasp_hold_time, start)
     if grasp is None:
         return None, None
     both_off = ~np.asarray(left_contact, bool) & ~np.asarray(right_contact, bool)
     release = first_sustained_index(t, both_off, criteria.release_hold_time, start=grasp)
     return grasp, release
+
+
+def grasp_segments(t, left_contact, right_contact, criteria=EventCriteria()):
+    """Return [(grasp index, release index or None)] of every grasp in turn (a regrasp: two)."""
+    segments, start = [], 0
+    while start is not None:
+        grasp, release = grasp_and_release_indices(t, left_contact, right_contact, criteria,
+                                                   start)
+        if grasp is None:
+            break
+        segments.append((grasp, release))
+        start = release
+    return segments
 
 
 def max_pad_slip(tool_position, object_position, object_quat_xyzw, begin, end):
