@@ -58,6 +58,9 @@ class RunnerConfig:
     landing_target_changes: tuple = ()
     """Operator input: (time [s], (x, y, z) [m]) landing targets handed to the motion generator
     at those sim times, as /dual_arm/landing_target does in the graph."""
+    commands: tuple = ()
+    """Operator input: (time [s], 'start', 'go_home' or 'reset') requests handed to the motion
+    generator at those sim times, as the ds_motion_generator node's command service does."""
 
 
 @dataclass
@@ -137,11 +140,14 @@ def run_episode(scenario, config=None, cell=None, duration=None, timer=None):
     log = EpisodeLog(trajectory={})
     duration = scenario.duration if duration is None else duration
     targets = sorted(config.landing_target_changes, key=lambda change: change[0])
+    commands = sorted(config.commands, key=lambda command: command[0])
     while twin.time < duration - 1e-9:
         state = fri.begin()
         while targets and targets[0][0] <= state.stamp_ns * 1e-9:
             log.landing_target_refusals.append(roles.motion.set_landing_target(
                 np.asarray(targets.pop(0)[1], dtype=float)))
+        while commands and commands[0][0] <= state.stamp_ns * 1e-9:
+            roles.motion.request(commands.pop(0)[1])
         with timer.stage('tracker'):
             for sample in state.mocap:
                 roles.tracker.sample(sample.stamp_ns, sample.position, sample.quat_xyzw)

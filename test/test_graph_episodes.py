@@ -55,6 +55,18 @@ def test_paper_place(tmp_path, ros_domain):
     assert m['success'] and code == 0
 
 
+def test_paper_place_regrasp(tmp_path, ros_domain):
+    """The node graph stages the box on the pallet, picks it up again and places it."""
+    out = tmp_path / 'paper_place_regrasp'
+    code, m, output = run_episode('paper_place_regrasp', out)
+    assert m, output + _logs(out)
+    print(json.dumps(m, indent=1))
+    assert m['grasp_count'] == 2, output + _logs(out)
+    assert m['place_position_error'] <= 0.02 and m['place_speed'] < 0.1
+    assert m['contact_time_gap'] <= 0.010 and m['max_slip'] <= 0.01
+    assert m['success'] and code == 0
+
+
 def test_a_refused_start_is_in_the_metrics(tmp_path, ros_domain):
     """A place too near the pallet: the graph's motion generator refuses it and says why."""
     from dataclasses import replace

@@ -18,6 +18,7 @@ from dual_arm_control.core.orientation import OrientationDsConfig
 from dual_arm_control.core.phases import PhaseConfig, Task, task_from_name, TASK_NAMES
 from dual_arm_control.core.place import PlaceConfig
 from dual_arm_control.core.reachability import ReachabilityConfig
+from dual_arm_control.core.regrasp import RegraspConfig
 from dual_arm_control.core.resting_object import RestingObjectConfig
 from dual_arm_control.core.settings import check_settings, setting
 from dual_arm_control.core.speed_shaping import SpeedProfileConfig
@@ -32,8 +33,8 @@ class MotionGeneratorConfig:
 
     standby_positions (2, 3) [m] and standby_rotations (2, 3, 3) are the tool standby poses in the
     world, rows left, right (set by the cell, not tunable); coordination, impact, toss, lift,
-    place, speed, orientation, phases, contact, ft, reachability, release_planning, conveyor,
-    moving_grab and resting_object are the component configs (see their modules).
+    place, speed, orientation, phases, contact, ft, reachability, regrasp, release_planning,
+    conveyor, moving_grab and resting_object are the component configs (see their modules).
     """
 
     task: object = setting(
@@ -86,6 +87,7 @@ class MotionGeneratorConfig:
     contact: ContactConfig = field(default_factory=ContactConfig)
     ft: FtCompensationConfig = field(default_factory=FtCompensationConfig)
     reachability: ReachabilityConfig = field(default_factory=ReachabilityConfig)
+    regrasp: RegraspConfig = field(default_factory=RegraspConfig)
     release_planning: ReleasePlanningConfig = field(default_factory=ReleasePlanningConfig)
     conveyor: ConveyorTossConfig = field(default_factory=ConveyorTossConfig)
     moving_grab: MovingGrabConfig = field(default_factory=MovingGrabConfig)

@@ -7,25 +7,22 @@ generator and returns the tick's outputs; the same stamp again (a republished cy
 the same outputs; other cycles return None. A cycle stamped before the last tick means the clock
 went back (simulation reset): the role starts over as at start-up.
 
-An episode starts on request, or by itself at auto_start_ns once an object estimate exists,
-and only if both arms can reach their grasp frames within their joint limits (core
-reachability, checked once at the start with the estimate; a shifted grasp, or one with the
-pads rolled about the face normals, is used when the centred one is out of reach). An
-unreachable grasp is refused with its reason: the arms stay in standby and the tick's phase
-carries the event 'unreachable'. A landing target given while the
-episode runs (set_landing_target) re-plans the release state (core.toss_planning) and applies it
-at the next tick, until the box is released; a target no release serves, or one that comes after
-the release, is refused with its reason. With a conveyor (config.conveyor.enabled) every tick
-up to the release aims the toss at the container's predicted position at the predicted landing
-(runtime.conveyor_aim, given the tracker's container estimate): the start waits at standby,
-event 'waiting_for_container' with the reason, until the container will be in the landing
-range at the landing, then event 'container_in_range'; after the start a tick that cannot aim
-keeps the previous aim. With a box on the incoming belt (config.moving_grab.enabled) the start
-waits likewise, event 'waiting_for_box', until the box is predicted in the grab range a reach
-duration ahead and the grasp there is reachable (planned at that predicted pose), then event
-'box_in_range'. A tick whose inputs the generator
-refuses is answered with a stop command (zero velocity at the
-current tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
+An episode starts on request, or by itself at auto_start_ns once an object estimate exists, and
+only if both arms reach their grasp frames within their joint limits (core.reachability, checked
+at the start on the estimate; shifted or rolled grasps tried when the centred one is not): else
+the arms stay in standby, event 'unreachable' with the reason. A box to be set down that no
+grasp both picks up and sets down is staged on its pallet and picked up again (runtime.regrasp):
+events 'regrasp', then 'regrasp_second_pass' (or 'regrasp_abandoned'). A landing target given
+while the episode runs (set_landing_target) re-plans the release state (core.toss_planning) from
+the next tick until the release; one no release serves, or that comes after it, is refused with
+its reason. With a conveyor (config.conveyor.enabled) every tick up to the release aims the toss
+at the container's predicted position at the landing (runtime.conveyor_aim): the start waits,
+event 'waiting_for_container', until the container will be in range, then 'container_in_range';
+after the start a tick that cannot aim keeps the previous aim. A box on the incoming belt
+(config.moving_grab.enabled) is waited for likewise ('waiting_for_box', 'box_in_range') until
+it is predicted in the grab range a reach duration ahead, its grasp there reachable. A tick
+whose inputs the generator refuses is answered with a stop command (zero velocity at the current
+tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
 
 Every torque command heard (command_heard) feeds a ControllerWatch; at the first tick out of
 standby an arm's controller is found lost (silent longer than controller_timeout), the generator
@@ -40,7 +37,7 @@ from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import UnreachableTargetError
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
-from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement, ObjectMeasurement
+from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement
 from dual_arm_control.core.moving_grab import grab_wait_reason, predicted_box_position
 from dual_arm_control.core.phases import Phase, Task
 from dual_arm_control.core.place import pallet_floor, place_rotation
@@ -49,8 +46,9 @@ from dual_arm_control.runtime.configuration import config_for_landing_target
 from dual_arm_control.runtime.controller_watch import ControllerWatch
 from dual_arm_control.runtime.conveyor_aim import container_aim
 from dual_arm_control.runtime.inputs import RefusalCounter
+from dual_arm_control.runtime.regrasp import staged_regrasp
 from dual_arm_control.runtime.signals import arm_command_from, PhaseSample, TwistSample
-from dual_arm_control.runtime.timing import estimate_at, TickSchedule
+from dual_arm_control.runtime.timing import estimate_at, object_measurement_at, TickSchedule
 import numpy as np
 
 COMMANDS = ('start', 'go_home', 'reset')
@@ -107,6 +105,8 @@ class MotionGeneratorStep:
         self.controllers.restart()
         self.container_aim = None
         self.waiting_reason = ''
+        self.regrasp = None
+        self._regrasp_reason = ''
 
     @property
     def config(self):
@@ -129,7 +129,13 @@ class MotionGeneratorStep:
         return self._last_tick
 
     def reconfigure(self, config):
-        """Apply config at the next tick (the phase and filters are kept, and a landing target)."""
+        """
+        Apply config at the next tick (the phase and filters are kept, and a landing target).
+
+        During a regrasp's first pass config is the task's, its place kept at the staging pose.
+        """
+        if self.regrasp is not None:
+            config = self.regrasp.reconfigured(config)
         if self._landing_target is not None:
             try:
                 config = config_for_landing_target(config, self._landing_target)
@@ -180,7 +186,8 @@ class MotionGeneratorStep:
         container: the tracker's ObjectState of the conveyor's container, or None.
         """
         if self._schedule.went_back(stamp_ns):
-            self._start_over(self._pending_config or self._generator.config)
+            self._start_over(self.regrasp.task_config if self.regrasp is not None
+                             else self._pending_config or self._generator.config)
             self._pending_config = None
             self.time_resets += 1
         if stamp_ns == self._schedule.last_tick_ns and self._last_tick is not None:
@@ -221,7 +228,7 @@ class MotionGeneratorStep:
             refused_start = self._plan_grasp(joints, estimate, stamp_ns)
             start = not refused_start
         try:
-            output = self._generator.step(arms, _object_measurement(estimate, stamp_ns, arms),
+            output = self._generator.step(arms, object_measurement_at(estimate, stamp_ns, arms),
                                           dt, start_episode=start,
                                           go_home=self._requests['go_home'],
                                           reset=self._requests['reset'])
@@ -229,8 +236,10 @@ class MotionGeneratorStep:
             self.refusals.refuse('tick', f'tick at {stamp_ns} ns: {error}')
             self._last_tick = _stop_tick(stamp_ns, arms, self._generator)
             return self._last_tick
+        regrasp_events = self._advance_regrasp()
         self._requests = dict.fromkeys(COMMANDS, False)
-        self._requests['start'] = requested and bool(self.waiting_reason)
+        self._requests['start'] = (requested and bool(self.waiting_reason)) or bool(
+            regrasp_events and regrasp_events[0] == 'regrasp_second_pass')
         phase = output.phase
         reason = '' if phase.transition is None else phase.transition.reason
         events = phase.events
@@ -238,6 +247,11 @@ class MotionGeneratorStep:
             events, reason = tuple(events) + container_events, self.waiting_reason or reason
         if refused_start:
             events, reason = tuple(events) + ('unreachable',), refused_start
+        if self._regrasp_reason:
+            events, reason = tuple(events) + ('regrasp',), self._regrasp_reason
+            self._regrasp_reason = ''
+        if regrasp_events:
+            events = tuple(events) + regrasp_events
         if lost_reason:
             events, reason = tuple(events) + ('controller_lost',), lost_reason
         self._last_tick = MotionTick(
@@ -249,6 +263,19 @@ class MotionGeneratorStep:
                               events, reason),
             output=output)
         return self._last_tick
+
+    def _advance_regrasp(self):
+        """Move a regrasp on after a tick (runtime.regrasp); return its events."""
+        if self.regrasp is None or self.regrasp.second_pass:
+            return ()
+        cancelled = self._requests['go_home'] or self._requests['reset']
+        step = 'abandoned' if cancelled else self.regrasp.advance(self._generator.phase)
+        if not step:
+            return ()
+        self._pending_config = self.regrasp.task_config
+        if step == 'abandoned':
+            self.regrasp = None
+        return (f'regrasp_{step}',)
 
     def _halt_if_lost(self, stamp_ns):
         """
@@ -324,9 +351,14 @@ class MotionGeneratorStep:
 
         A box to be set down is grasped where the arms also reach the place; a place where it
         would come within place.pallet_clearance of the pallet (core.place.pallet_floor) is
-        refused, as the box could not come down there.
+        refused, as the box could not come down there. A box no grasp both picks up and sets
+        down is staged on its pallet first (core.regrasp, runtime.regrasp), if a staging pose
+        serves; the second pass's plan ends the regrasp.
         """
         config = self._generator.config
+        second_pass = self.regrasp is not None and self.regrasp.second_pass
+        if second_pass:
+            self.regrasp = None
         place = None
         if config.task is Task.PICK_AND_PLACE:
             place = (np.asarray(config.place.position, dtype=float), place_rotation(config.place))
@@ -340,18 +372,21 @@ class MotionGeneratorStep:
             self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
             np.asarray(config.object_size), config.reachability,
             config.impact.support_clearance, place)
+        if (not self.grasp_plan.reachable and place is not None and not second_pass
+                and config.regrasp.enabled and config.place.pallet
+                and not config.moving_grab.enabled):
+            self._stage(joints, position, rotation, place)
         if self.grasp_plan.reachable:
             self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
         return self.grasp_plan
 
-
-def _object_measurement(estimate, stamp_ns, arms):
-    """Return the estimate predicted to stamp_ns, or a stand-in between the pads without one."""
-    if estimate is None or not estimate.valid:
-        midpoint = 0.5 * (arms['left'].p_world_tool + arms['right'].p_world_tool)
-        return ObjectMeasurement(midpoint, np.eye(3), np.zeros(3))
-    position, rotation, linear, _ = estimate_at(estimate, stamp_ns)
-    return ObjectMeasurement(position, rotation, linear)
+    def _stage(self, joints, position, rotation, place):
+        """Plan a regrasp through a staging pose; adopt its first grasp, or add why not."""
+        self.regrasp, self.grasp_plan, self._regrasp_reason = staged_regrasp(
+            self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
+            place, self._generator.config, self.grasp_plan)
+        if self.regrasp is not None:
+            self._generator.reconfigure(self.regrasp.staging_config())
 
 
 def _stop_tick(stamp_ns, arms, generator):

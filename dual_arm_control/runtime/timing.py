@@ -6,6 +6,8 @@ multi-process lockstep run and an in-process run on the same schedule.
 """
 
 from dual_arm_control.core.geometry import rotation_exp
+from dual_arm_control.core.motion_signals import ObjectMeasurement
+import numpy as np
 
 NANOSECONDS_PER_SECOND = 1_000_000_000
 
@@ -65,3 +67,16 @@ def estimate_at(estimate, t_ns):
     return (estimate.position + estimate.linear_velocity * dt,
             rotation_exp(estimate.angular_velocity * dt) @ R_world,
             estimate.linear_velocity, estimate.angular_velocity)
+
+
+def object_measurement_at(estimate, stamp_ns, arms):
+    """
+    Return the ObjectMeasurement of the estimate (ObjectState or None) predicted to stamp_ns.
+
+    Without a valid estimate, a stand-in between the pads of arms {arm: ArmMeasurement}.
+    """
+    if estimate is None or not estimate.valid:
+        midpoint = 0.5 * (arms['left'].p_world_tool + arms['right'].p_world_tool)
+        return ObjectMeasurement(midpoint, np.eye(3), np.zeros(3))
+    position, rotation, linear, _ = estimate_at(estimate, stamp_ns)
+    return ObjectMeasurement(position, rotation, linear)
