@@ -8,6 +8,7 @@ shifted away from the bases; the front-table place only with it shifted toward t
 from dataclasses import replace
 import math
 
+from dual_arm_control.catalogue import load_catalogue
 from dual_arm_control.core.geometry import matrix_to_rpy, quat_xyzw_to_matrix, rpy_to_matrix
 from dual_arm_control.core.motion_config import MotionGeneratorConfig
 from dual_arm_control.core.phases import Phase
@@ -74,6 +75,31 @@ def test_a_box_no_single_grasp_serves_is_staged_where_both_grasps_reach(cell, mo
     assert staging.first.offset[0] > 0.0 > staging.second.offset[0]
     for plan in (staging.first, staging.second):
         assert all(solution.reachable for solution in plan.solutions.values())
+
+
+def test_a_box_one_grasp_would_set_down_short_is_staged_instead(cell, models):
+    """
+    The 6 kg bottle pack near the right arm's base, yawed -20 deg (catalogue_random_place).
+
+    Its only grasp for both ends puts a wrist 47 mm beyond the straight arm at the place: taken,
+    the box was set down 22 mm short of it. Staged, the second grasp keeps the wrist margin.
+    """
+    pack = load_catalogue()['bottle_pack']
+    home = {arm: cell.arm(arm).q_home for arm in models}
+    config = ReachabilityConfig()
+    pick = np.array([0.387, -0.051, 0.5 * pack.size[2] + cell.pallet.top_height])
+    R_world_pick = rpy_to_matrix((0.0, 0.0, math.radians(-20.1)))
+    place = (np.array([0.75, 0.0, cell.surface_height(0.75, 0.0) + 0.5 * pack.size[2]]),
+             np.eye(3))
+    size = np.asarray(pack.size)
+    direct = plan_grasp(models, home, pick, R_world_pick, size, config, 0.02, place)
+    assert direct.reachable and direct.short
+    staging = plan_staging(models, home, pick, R_world_pick, size, config, place,
+                           cell.pallet.top_face(), 0.0, RegraspConfig(), 0.02, clear_only=True)
+    assert staging.reachable and not staging.second.short
+    nominal = plan_grasp(models, home, np.array([0.41, 0.0, pick[2]]), np.eye(3), size, config,
+                         0.02, place)
+    assert nominal.reachable and not nominal.short
 
 
 def test_a_box_the_arms_cannot_pick_up_is_not_staged(cell, models):

@@ -122,7 +122,8 @@ class GraspPlan:
     roll [rad]: both pads' roll about their face normals (core.grasp.grasp_frame); reachable:
     both arms reach their grasp frames; reason: why not (empty when reachable); solutions
     {arm: PoseSolution} of the chosen (or, unreachable, the first tried) grasp; empty when the
-    place left no grasp to try.
+    place left no grasp to try; short: a box to be set down is reached at its place only with a
+    wrist beyond place_wrist_margin (place_order), so it is set down short of the place.
     """
 
     offset: np.ndarray
@@ -130,6 +131,7 @@ class GraspPlan:
     reason: str
     solutions: dict
     roll: float = 0.0
+    short: bool = False
 
 
 def pose_error(model, q, p_world_target, R_world_target):
@@ -324,16 +326,16 @@ def plan_grasp(models, q_current, p_world_object, R_world_object, size, config,
     """
     candidates = grasp_candidates(size, config, support_clearance, both_ways=place is not None,
                                   raised=place is not None, last_resort=place is None)
-    order, place_reason = range(len(candidates)), ''
+    order, place_reason, clear = range(len(candidates)), '', len(candidates)
     if place is not None:
-        order, place_reason = place_order(models, candidates, place, size, config)
+        order, place_reason, clear = place_order(models, candidates, place, size, config)
     first = None
-    for index in order:
+    for rank, index in enumerate(order):
         roll, offset = candidates[index]
         solutions = _solve(models, q_current, p_world_object, R_world_object, size, offset,
                            roll, config)
         if all(solution.reachable for solution in solutions.values()):
-            return GraspPlan(offset, True, '', solutions, roll)
+            return GraspPlan(offset, True, '', solutions, roll, short=rank >= clear)
         first = first or solutions
     if first is None:
         return GraspPlan(np.zeros(3), False, place_reason, {})
@@ -350,7 +352,7 @@ def plan_grasp(models, q_current, p_world_object, R_world_object, size, config,
 
 def place_order(models, candidates, place, size, config):
     """
-    Return (candidate indices to try, why none is left) for a box to be set down at place.
+    Return (candidate indices to try, why none is left, how many lead) for a box to be set down.
 
     place: the box's pose at the place (p (3,) [m], R (3, 3)). The candidates whose wrists all
     stay place_wrist_margin inside their straight-arm reach there (core.elbow_reach
@@ -358,7 +360,7 @@ def place_order(models, candidates, place, size, config):
     wrists lie at most max_place_overreach beyond it: a box grasped near the arms' bases
     (shifted toward +x to be reached there) is set down short rather than refused. A grasp
     with a wrist farther out is left out: the arm would stop short with the box held above
-    the table.
+    the table. The count is that of the leading candidates that keep the margin.
     """
     reaches = {arm: models[arm].elbow_reach() for arm in ARMS}
     p_world_place, R_world_place = place
@@ -374,4 +376,4 @@ def place_order(models, candidates, place, size, config):
         reason = (f'place {np.round(np.asarray(p_world_place, dtype=float), 3).tolist()} m out '
                   f'of reach: with any grasp on the faces a wrist lies at least '
                   f'{1000.0 * min(overreach):.0f} mm beyond its straight-arm reach there')
-    return clear + short, reason
+    return clear + short, reason, len(clear)

@@ -84,7 +84,7 @@ def staging_positions(p_world_object, pallet, config):
 
 
 def plan_staging(models, q_current, p_world_object, R_world_object, size, reachability, place,
-                 pallet, yaw, config, support_clearance=0.0):
+                 pallet, yaw, config, support_clearance=0.0, clear_only=False):
     """
     Return the StagingPlan of a box (pose, size (3,) [m]) whose pick and place no grasp serves.
 
@@ -93,7 +93,8 @@ def plan_staging(models, q_current, p_world_object, R_world_object, size, reacha
     staging_positions, with the box at yaw [rad] there, is tried in turn: it serves when the
     first grasp also reaches it (inverse kinematics, and every wrist place_wrist_margin inside
     its straight-arm reach) and another grasp picks the box up there and sets it down at place
-    ((p (3,) [m], R (3, 3))), from the arms' joints q_current {arm: (7,)}.
+    ((p (3,) [m], R (3, 3))), from the arms' joints q_current {arm: (7,)}; with clear_only a
+    grasp that would set the box down short of the place (GraspPlan.short) does not serve.
     """
     rotation = rpy_to_matrix((0.0, 0.0, yaw))
     first = plan_grasp(models, q_current, p_world_object, R_world_object, size, reachability,
@@ -107,7 +108,7 @@ def plan_staging(models, q_current, p_world_object, R_world_object, size, reacha
             continue
         second = plan_grasp(models, q_current, position, rotation, size, reachability,
                             support_clearance, place)
-        if second.reachable:
+        if second.reachable and not (clear_only and second.short):
             return StagingPlan(position, rotation, first, second, True, '')
     reason = (f'no staging pose on the pallet serves both grasps ({len(positions)} tried)'
               if positions else 'no staging pose fits on the pallet')

@@ -11,7 +11,7 @@ An episode starts on request, or by itself at auto_start_ns once an object estim
 only if both arms reach their grasp frames within their joint limits (core.reachability, checked
 at the start on the estimate; shifted or rolled grasps tried when the centred one is not): else
 the arms stay in standby, event 'unreachable' with the reason. A box to be set down that no
-grasp both picks up and sets down is staged on its pallet and picked up again (runtime.regrasp):
+grasp both picks up and sets down on its place is staged on its pallet and picked up again:
 events 'regrasp', then 'regrasp_second_pass' (or 'regrasp_abandoned'). A landing target given
 while the episode runs (set_landing_target) re-plans the release state (core.toss_planning) from
 the next tick until the release; one no release serves, or that comes after it, is refused with
@@ -352,8 +352,8 @@ class MotionGeneratorStep:
         A box to be set down is grasped where the arms also reach the place; a place where it
         would come within place.pallet_clearance of the pallet (core.place.pallet_floor) is
         refused, as the box could not come down there. A box no grasp both picks up and sets
-        down is staged on its pallet first (core.regrasp, runtime.regrasp), if a staging pose
-        serves; the second pass's plan ends the regrasp.
+        down on its place is staged on its pallet first (core.regrasp, runtime.regrasp), if a
+        staging pose serves; the second pass's plan ends the regrasp.
         """
         config = self._generator.config
         second_pass = self.regrasp is not None and self.regrasp.second_pass
@@ -372,8 +372,8 @@ class MotionGeneratorStep:
             self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
             np.asarray(config.object_size), config.reachability,
             config.impact.support_clearance, place)
-        if (not self.grasp_plan.reachable and place is not None and not second_pass
-                and config.regrasp.enabled and config.place.pallet
+        if ((not self.grasp_plan.reachable or self.grasp_plan.short) and not second_pass
+                and config.regrasp.enabled and config.place.pallet and place is not None
                 and not config.moving_grab.enabled):
             self._stage(joints, position, rotation, place)
         if self.grasp_plan.reachable:

@@ -80,16 +80,21 @@ def staged_regrasp(models, q_current, position, rotation, place, config, refused
 
     models {arm: ArmModel}; q_current {arm: (7,)} [rad]; the box's pose (position (3,) [m],
     rotation (3, 3)); place (p (3,) [m], R (3, 3)); config: the task's MotionGeneratorConfig;
-    refused_plan: the GraspPlan no single grasp served. Without a staging pose the refused plan
-    comes back with the staging planner's reason added.
+    refused_plan: the GraspPlan that does not serve: unreachable, or short (it would set the box
+    down short of the place; a regrasp then serves only if its second grasp is not short).
+    Without a staging pose the plan comes back, an unreachable one with the staging planner's
+    reason added.
     """
     staging = plan_staging(
         models, q_current, position, rotation, np.asarray(config.object_size),
         config.reachability, place, config.place.pallet, np.radians(config.place.yaw_deg),
-        config.regrasp, config.impact.support_clearance)
+        config.regrasp, config.impact.support_clearance, clear_only=refused_plan.reachable)
     if not staging.reachable:
+        if refused_plan.reachable:
+            return None, refused_plan, ''
         return None, replace(refused_plan, reason=(
             f'{refused_plan.reason}; no regrasp: {staging.reason}')), ''
-    reason = (f'no grasp both picks the box up and sets it down: staged at '
+    what = 'sets it down' if not refused_plan.reachable else 'sets it down on its place'
+    reason = (f'no grasp both picks the box up and {what}: staged at '
               f'{np.round(staging.position, 3).tolist()} m, then picked up again')
     return RegraspSequence(config, staging, position), staging.first, reason
