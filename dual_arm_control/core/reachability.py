@@ -92,10 +92,11 @@ class ReachabilityConfig:
         "clearance, 2 of 60 forearms met the table's edge in a randomization of boxes scaled "
         '0.75-1.25, 0 once grasped high).', unit='m', low=0, high=0.2)
     max_place_overreach: float = setting(
-        0.05, 'Pick-and-place, when no grasp the pick allows keeps place_wrist_margin: the '
-        'grasp whose wrists lie least beyond the straight arm at the place is taken if that is '
-        'at most this far (the box is then set down short: 12-28 mm at 16-65 mm in '
-        'catalogue_random_place seed 22); beyond it the task is refused.',
+        0.05, 'Pick-and-place, when no grasp the pick allows keeps place_wrist_margin and no '
+        'regrasp serves (core.regrasp): the grasp whose wrists lie least beyond the straight '
+        'arm at the place is taken if that is at most this far (the box is then set down '
+        'short: 12-28 mm at 16-65 mm in catalogue_random_place seed 22); beyond it the task '
+        'is refused.',
         unit='m', low=0, high=0.2)
 
     def __post_init__(self):
