@@ -35,6 +35,13 @@ class RegraspConfig:
         0.04, 'Least horizontal travel from the pick to the staging pose: the place DS lifts '
         'the box only over a travel (core.place.place_target), and a box turned in place '
         'would scrape the pallet.', unit='m', low=0, high=0.3)
+    retract_timeout: float = setting(
+        2.0, 'The second pass starts once both tools are back at standby, or after this long in '
+        "the first pass's retract, from where the arms stopped: an arm that set the box down "
+        'with its elbow turned over can stall on the way back with a wrist joint on its limit '
+        '(catalogue_random_place seed 9494, trial 43: 8 cm from standby; a retract that gets '
+        'there takes about 1 s, 0.95 s in paper_place_regrasp).', unit='s', low=0, high=60.0,
+        low_open=True)
     pallet_margin: float = setting(
         0.06, "The staged box's centre stays this far inside the pallet's top, so it rests on "
         'the pallet with its centre of mass well inside the edge.', unit='m', low=0, high=0.2)

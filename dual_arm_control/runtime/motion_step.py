@@ -8,21 +8,22 @@ the same outputs; other cycles return None. A cycle stamped before the last tick
 went back (simulation reset): the role starts over as at start-up.
 
 An episode starts on request, or by itself at auto_start_ns once an object estimate exists, and
-only if both arms reach their grasp frames within their joint limits (core.reachability, checked
-at the start on the estimate; shifted or rolled grasps tried when the centred one is not): else
-the arms stay in standby, event 'unreachable' with the reason. A box to be set down that no
-grasp both picks up and sets down on its place is staged on its pallet and picked up again:
-events 'regrasp', then 'regrasp_second_pass' (or 'regrasp_abandoned'). A landing target given
-while the episode runs (set_landing_target) re-plans the release state (core.toss_planning) from
-the next tick until the release; one no release serves, or that comes after it, is refused with
-its reason. With a conveyor (config.conveyor.enabled) every tick up to the release aims the toss
-at the container's predicted position at the landing (runtime.conveyor_aim): the start waits,
-event 'waiting_for_container', until the container will be in range, then 'container_in_range';
-after the start a tick that cannot aim keeps the previous aim. A box on the incoming belt
-(config.moving_grab.enabled) is waited for likewise ('waiting_for_box', 'box_in_range') until
-it is predicted in the grab range a reach duration ahead, its grasp there reachable. A tick
-whose inputs the generator refuses is answered with a stop command (zero velocity at the current
-tool pose), so the controllers damp the arms to rest instead of waiting for an answer.
+only if both arms reach their grasp frames within their joint limits (core.reachability, checked at
+the start on the estimate; shifted or rolled grasps tried when the centred one is not): else the
+arms stay in standby, event 'unreachable' with the reason. A box to be set down that no grasp both
+picks up and sets down on its place is staged on its pallet and picked up again (runtime.regrasp;
+events 'regrasp', 'regrasp_second_pass' or 'regrasp_retract_stalled' and a reset, or
+'regrasp_abandoned'). A landing target given while the episode runs (set_landing_target) re-plans
+the release state (core.toss_planning) from the next tick until the release; one no release serves,
+or that comes after it, is refused with its reason. With a conveyor (config.conveyor.enabled) every
+tick up to the release aims the toss at the container's predicted position at the landing
+(runtime.conveyor_aim): the start waits, event 'waiting_for_container', until the container will be
+in range, then 'container_in_range'; after the start a tick that cannot aim keeps the previous aim.
+A box on the incoming belt (config.moving_grab.enabled) is waited for likewise ('waiting_for_box',
+'box_in_range') until it is predicted in the grab range a reach duration ahead, its grasp there
+reachable. A tick whose inputs the generator refuses is answered with a stop command (zero velocity
+at the current tool pose), so the controllers damp the arms to rest instead of waiting for an
+answer.
 
 Every torque command heard (command_heard) feeds a ControllerWatch; at the first tick out of
 standby an arm's controller is found lost (silent longer than controller_timeout), the generator
@@ -107,6 +108,7 @@ class MotionGeneratorStep:
         self.waiting_reason = ''
         self.regrasp = None
         self._regrasp_reason = ''
+        self._start_after_reset = False
 
     @property
     def config(self):
@@ -236,10 +238,13 @@ class MotionGeneratorStep:
             self.refusals.refuse('tick', f'tick at {stamp_ns} ns: {error}')
             self._last_tick = _stop_tick(stamp_ns, arms, self._generator)
             return self._last_tick
-        regrasp_events = self._advance_regrasp()
+        regrasp_step = self._advance_regrasp(output.phase.time_in_phase)
+        start_after_reset, self._start_after_reset = self._start_after_reset, False
         self._requests = dict.fromkeys(COMMANDS, False)
-        self._requests['start'] = (requested and bool(self.waiting_reason)) or bool(
-            regrasp_events and regrasp_events[0] == 'regrasp_second_pass')
+        self._requests['start'] = ((requested and bool(self.waiting_reason)) or start_after_reset
+                                   or regrasp_step == 'second_pass')
+        if regrasp_step == 'retract_stalled':
+            self._requests['reset'] = self._start_after_reset = True
         phase = output.phase
         reason = '' if phase.transition is None else phase.transition.reason
         events = phase.events
@@ -250,8 +255,8 @@ class MotionGeneratorStep:
         if self._regrasp_reason:
             events, reason = tuple(events) + ('regrasp',), self._regrasp_reason
             self._regrasp_reason = ''
-        if regrasp_events:
-            events = tuple(events) + regrasp_events
+        if regrasp_step:
+            events = tuple(events) + (f'regrasp_{regrasp_step}',)
         if lost_reason:
             events, reason = tuple(events) + ('controller_lost',), lost_reason
         self._last_tick = MotionTick(
@@ -264,18 +269,17 @@ class MotionGeneratorStep:
             output=output)
         return self._last_tick
 
-    def _advance_regrasp(self):
-        """Move a regrasp on after a tick (runtime.regrasp); return its events."""
-        if self.regrasp is None or self.regrasp.second_pass:
-            return ()
-        cancelled = self._requests['go_home'] or self._requests['reset']
-        step = 'abandoned' if cancelled else self.regrasp.advance(self._generator.phase)
-        if not step:
-            return ()
-        self._pending_config = self.regrasp.task_config
+    def _advance_regrasp(self, time_in_phase):
+        """Move a regrasp on after a tick (runtime.regrasp); return its step, or ''."""
+        if self.regrasp is None:
+            return ''
+        step = self.regrasp.advance(self._generator.phase, time_in_phase,
+                                    self._requests['go_home'] or self._requests['reset'])
+        if step:
+            self._pending_config = self.regrasp.task_config
         if step == 'abandoned':
             self.regrasp = None
-        return (f'regrasp_{step}',)
+        return step
 
     def _halt_if_lost(self, stamp_ns):
         """
@@ -375,18 +379,14 @@ class MotionGeneratorStep:
         if ((not self.grasp_plan.reachable or self.grasp_plan.short) and not second_pass
                 and config.regrasp.enabled and config.place.pallet and place is not None
                 and not config.moving_grab.enabled):
-            self._stage(joints, position, rotation, place)
+            self.regrasp, self.grasp_plan, self._regrasp_reason = staged_regrasp(
+                self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
+                place, config, self.grasp_plan)
+            if self.regrasp is not None:
+                self._generator.reconfigure(self.regrasp.staging_config())
         if self.grasp_plan.reachable:
             self._generator.set_grasp(self.grasp_plan.offset, self.grasp_plan.roll)
         return self.grasp_plan
-
-    def _stage(self, joints, position, rotation, place):
-        """Plan a regrasp through a staging pose; adopt its first grasp, or add why not."""
-        self.regrasp, self.grasp_plan, self._regrasp_reason = staged_regrasp(
-            self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
-            place, self._generator.config, self.grasp_plan)
-        if self.regrasp is not None:
-            self._generator.reconfigure(self.regrasp.staging_config())
 
 
 def _stop_tick(stamp_ns, arms, generator):

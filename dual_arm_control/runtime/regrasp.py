@@ -56,18 +56,29 @@ class RegraspSequence:
         self.task_config = config
         return config if self.second_pass else self.staging_config(config)
 
-    def advance(self, phase):
+    def advance(self, phase, time_in_phase, cancelled=False):
         """
-        Note the generator's Phase after a tick; return what the caller does now.
+        Note the generator's Phase and time in it [s] after a tick; return what the caller does.
+
+        cancelled: a go_home or reset was requested on the tick (the first pass then ends as
+        'abandoned').
 
         'second_pass': the first pass has ended back in standby after its release: apply
-        task_config and start again. 'abandoned': it ended in standby without a release (the
-        grasp aborted, a go_home before the grasp): apply task_config and stop. '' otherwise.
+        task_config and start again. 'retract_stalled': its retract has lasted
+        regrasp.retract_timeout: apply task_config, reset to standby and start again from where
+        the arms stopped. 'abandoned': it ended in standby without a release (the grasp
+        aborted, a go_home before the grasp): apply task_config and stop. '' otherwise.
         """
         if self.second_pass:
             return ''
+        if cancelled:
+            return 'abandoned'
         self._released = self._released or phase is Phase.RELEASE
         self._started = self._started or phase is not Phase.STANDBY
+        if (self._released and phase is Phase.RETRACT
+                and time_in_phase >= self.task_config.regrasp.retract_timeout):
+            self.second_pass = True
+            return 'retract_stalled'
         if phase is Phase.STANDBY and self._started:
             self.second_pass = True
             return 'second_pass' if self._released else 'abandoned'
