@@ -60,14 +60,12 @@ class RegraspSequence:
         """
         Note the generator's Phase and time in it [s] after a tick; return what the caller does.
 
-        cancelled: a go_home or reset was requested on the tick (the first pass then ends as
-        'abandoned').
-
         'second_pass': the first pass has ended back in standby after its release: apply
         task_config and start again. 'retract_stalled': its retract has lasted
         regrasp.retract_timeout: apply task_config, reset to standby and start again from where
         the arms stopped. 'abandoned': it ended in standby without a release (the grasp
-        aborted, a go_home before the grasp): apply task_config and stop. '' otherwise.
+        aborted, a go_home before the grasp) or cancelled (a go_home or reset requested on the
+        tick): apply task_config and stop. '' otherwise.
         """
         if self.second_pass:
             return ''
