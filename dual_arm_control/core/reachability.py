@@ -299,7 +299,9 @@ def grasp_candidates(size, config, support_clearance=0.0, both_ways=False, raise
     return tuple(candidates)
 
 
-def _solve(models, q_start, p_world_object, R_world_object, size, offset, roll, config):
+def grasp_solutions(models, q_start, p_world_object, R_world_object, size, offset, roll,
+                    config):
+    """Return {arm: PoseSolution} of both grasp frames of a grasp (offset, roll) from q_start."""
     solutions = {}
     for arm in ARMS:
         frame = grasp_frame(arm, p_world_object, R_world_object, size, offset, roll)
@@ -333,8 +335,8 @@ def plan_grasp(models, q_current, p_world_object, R_world_object, size, config,
     first = None
     for rank, index in enumerate(order):
         roll, offset = candidates[index]
-        solutions = _solve(models, q_current, p_world_object, R_world_object, size, offset,
-                           roll, config)
+        solutions = grasp_solutions(models, q_current, p_world_object, R_world_object, size,
+                                    offset, roll, config)
         if all(solution.reachable for solution in solutions.values()):
             return GraspPlan(offset, True, '', solutions, roll, short=rank >= clear)
         first = first or solutions

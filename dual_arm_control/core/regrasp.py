@@ -13,8 +13,7 @@ from dataclasses import dataclass
 from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.elbow_reach import wrist_overreach
 from dual_arm_control.core.geometry import rpy_to_matrix
-from dual_arm_control.core.grasp import grasp_frame
-from dual_arm_control.core.reachability import inverse_kinematics, plan_grasp
+from dual_arm_control.core.reachability import grasp_solutions, plan_grasp
 from dual_arm_control.core.settings import check_settings, setting
 import numpy as np
 
@@ -110,8 +109,9 @@ def plan_staging(models, q_current, p_world_object, R_world_object, size, reacha
         return StagingPlan(np.zeros(3), rotation, first, None, False,
                            f'no grasp picks the box up: {first.reason}')
     positions = staging_positions(p_world_object, pallet, config)
+    reaches = {arm: models[arm].elbow_reach() for arm in ARMS}
     for position in positions:
-        if not _sets_down(models, first, position, rotation, size, reachability):
+        if not _sets_down(models, reaches, first, position, rotation, size, reachability):
             continue
         second = plan_grasp(models, q_current, position, rotation, size, reachability,
                             support_clearance, place)
@@ -122,15 +122,11 @@ def plan_staging(models, q_current, p_world_object, R_world_object, size, reacha
     return StagingPlan(np.zeros(3), rotation, first, None, False, reason)
 
 
-def _sets_down(models, grasp, position, rotation, size, reachability):
-    """Return whether the arms holding the box by grasp (GraspPlan) reach it at a pose."""
-    reaches = {arm: models[arm].elbow_reach() for arm in ARMS}
+def _sets_down(models, reaches, grasp, position, rotation, size, reachability):
+    """Return whether the arms ({arm: ElbowReach}) holding the box by grasp reach it at a pose."""
     if (wrist_overreach(reaches, position, rotation, size, grasp.offset, grasp.roll)
             > -reachability.place_wrist_margin):
         return False
-    for arm in ARMS:
-        frame = grasp_frame(arm, position, rotation, size, grasp.offset, grasp.roll)
-        if not inverse_kinematics(models[arm], frame.p_world_grasp, frame.R_world_grasp,
-                                  grasp.solutions[arm].q, reachability).reachable:
-            return False
-    return True
+    solutions = grasp_solutions(models, {arm: grasp.solutions[arm].q for arm in ARMS}, position,
+                                rotation, size, grasp.offset, grasp.roll, reachability)
+    return all(solution.reachable for solution in solutions.values())

@@ -90,12 +90,6 @@ def first_event(events, name):
                 (None, None))
 
 
-def last_event(events, name):
-    """Return (sim time [s], reason) of the last event called name, or (None, None)."""
-    return next(((time, reason) for time, names, reason in reversed(events) if name in names),
-                (None, None))
-
-
 def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=()):
     """
     Return the metrics dict of one episode; times count from start_time [s] of sim time.
@@ -107,7 +101,7 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=
     t = data['t'] - start_time
     result = dict.fromkeys(METRIC_KEYS + ('landing_prediction_error', 'place_speed'))
     result['start_refusal'] = first_event(events, 'unreachable')[1]
-    released_at = last_event(events, 'released')[0]
+    released_at = first_event(events[::-1], 'released')[0]
     result['t_task_release'] = None if released_at is None else released_at - start_time
     contact_index = {arm: metrics.first_true_index(data[f'{arm}_pad_contact']) for arm in ARMS}
     models = {arm: arm_model(arm, cell) for arm in ARMS}

@@ -372,16 +372,15 @@ class MotionGeneratorStep:
                     f'would come within {1000.0 * config.place.pallet_clearance:.0f} mm of it '
                     f'and could not be set down'), {})
                 return self.grasp_plan
+        q_current = {arm: joints[arm].position for arm in ARMS}
         self.grasp_plan = plan_grasp(
-            self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
-            np.asarray(config.object_size), config.reachability,
-            config.impact.support_clearance, place)
+            self._models, q_current, position, rotation, np.asarray(config.object_size),
+            config.reachability, config.impact.support_clearance, place)
         if ((not self.grasp_plan.reachable or self.grasp_plan.short) and not second_pass
                 and config.regrasp.enabled and config.place.pallet and place is not None
                 and not config.moving_grab.enabled):
             self.regrasp, self.grasp_plan, self._regrasp_reason = staged_regrasp(
-                self._models, {arm: joints[arm].position for arm in ARMS}, position, rotation,
-                place, config, self.grasp_plan)
+                self._models, q_current, position, rotation, place, config, self.grasp_plan)
             if self.regrasp is not None:
                 self._generator.reconfigure(self.regrasp.staging_config())
         if self.grasp_plan.reachable:
