@@ -609,10 +609,13 @@ def test_wrench_qp_zero_outside_grasp_and_squeeze_in_manipulate(wrench_qp):
     net_moment = sum(wrenches[arm][3:] + np.cross(tools[arm][0] - wrench_qp.p_world_object,
                                                   wrenches[arm][:3]) for arm in contract.ARMS)
     # Left pad on the +y face pushes along -y, the right pad along +y, within the normal-force
-    # bounds; after 42 grasp ticks of 6 ms the 20 ms ramp is complete to exp(-12.6) ~ 3e-6.
-    qp = wrench_qp.node.config.qp
-    assert qp.min_normal_force * (1.0 - 1e-5) <= -wrenches['left'][1] <= qp.max_normal_force
-    assert qp.min_normal_force * (1.0 - 1e-5) <= wrenches['right'][1] <= qp.max_normal_force
+    # bounds of a square box's grip; after 42 grasp ticks of 6 ms the 20 ms ramp is complete to
+    # exp(-12.6) ~ 3e-6.
+    config = wrench_qp.node.config
+    floor = wrench_qp.node.step.last_result.normal_force_floor
+    assert floor == config.square_grip_force
+    assert floor * (1.0 - 1e-5) <= -wrenches['left'][1] <= config.qp.max_normal_force
+    assert floor * (1.0 - 1e-5) <= wrenches['right'][1] <= config.qp.max_normal_force
     np.testing.assert_allclose(net_force, [0.0, 0.0, mass * GRAVITY], atol=1e-3)
     np.testing.assert_allclose(net_moment, np.zeros(3), atol=1e-3)
     assert wrench_qp.node.step.counters['infeasible_ticks'] == 0
@@ -629,6 +632,7 @@ def test_wrench_qp_parameters(wrench_qp):
     node = wrench_qp.node
     for name, value, reason in (('qp.min_normal_force', 120.0, 'max_normal_force'),
                                 ('ramp_time_constant', 0.0, 'ramp_time_constant'),
+                                ('square_grip_force', 105.0, 'square_grip_force'),
                                 ('object_mass', -1.0, ''),
                                 ('object_size', [0.2, 0.0, 0.2],
                                  'object_size[1] = 0 m is outside (0, 2] m'),
@@ -636,6 +640,7 @@ def test_wrench_qp_parameters(wrench_qp):
                                 ('scenario', 'hold', 'read-only')):
         result = set_parameter(node, name, value)
         assert not result.successful and reason in result.reason, (name, result.reason)
+    assert set_parameter(node, 'square_grip_yaw', 0.0).successful
     assert set_parameter(node, 'qp.squeeze_force', 86.0).successful
     assert set_parameter(node, 'object_mass', 1.5).successful
     t_ns = 0

@@ -111,7 +111,8 @@ class WrenchQPConfig:
         'error (400 N s/m) pulls a pad off its face with 40 N and more. At 30 N the pads of '
         'light boxes let go mid-carry (catalogue_random, seed 11, 300 trials: slip p95 5.8 mm, '
         '31 boxes above 5 mm; at 70 N 4.5 mm and 6). Heavy boxes get more '
-        '(wrench_distribution.qp_config_for_mass).', unit='N', low=0,
+        '(wrench_distribution.qp_config_for_mass), boxes grasped square less '
+        '(wrench_distribution square_grip_force).', unit='N', low=0,
         high=NORMAL_FORCE_LIMIT)
     max_normal_force: float = setting(
         105.0, 'Upper bound of the normal force of a pad in contact, above min_normal_force.',

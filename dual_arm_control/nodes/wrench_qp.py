@@ -122,8 +122,10 @@ class WrenchQPNode(Node):
         values = dict(self.step.counters, dropped_stamps=self._barrier.dropped)
         values.update({f'refused_{reason}': n for reason, n in self.refusals.counts.items()})
         phase = self._inputs['phase'].value()
+        result = self.step.last_result
         values.update({'phase': 'none' if phase is None else phase.phase.value,
-                       'object_mass': self.step.object_mass})
+                       'object_mass': self.step.object_mass,
+                       'normal_force_floor': 0.0 if result is None else result.normal_force_floor})
         if self.refusals.total or self.step.counters['infeasible_ticks']:
             return DiagnosticStatus.WARN, 'inputs refused or QP infeasible', values
         return DiagnosticStatus.OK, 'running', values
