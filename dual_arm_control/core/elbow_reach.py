@@ -154,7 +154,7 @@ def reachable_release_rotation(reaches, p_world_release, v_world_release, R_worl
     yaw = matrix_to_rpy(R_world_held)[2]
     heading = math.atan2(v_world_release[1], v_world_release[0])
     turn = math.remainder(heading - yaw, 2.0 * math.pi)
-    steps = int(math.ceil(abs(turn) / step))
+    steps = int(math.ceil(abs(turn) / step - 1e-9))
     best, least = R_world_held, math.inf
     for index in range(steps + 1):
         candidate = rotation_exp(np.array([0.0, 0.0, turn * index / max(steps, 1)])) \
