@@ -11,6 +11,7 @@ import math
 
 from conftest import yaw_rotation
 from dual_arm_control.core.exceptions import ConfigError
+from dual_arm_control.core.geometry import rpy_to_matrix
 from dual_arm_control.core.phases import Phase
 from dual_arm_control.core.wrench_distribution import (grip_normal_force, grip_qp_config,
                                                        squeeze_axis_yaw, WrenchDistributor,
@@ -33,9 +34,7 @@ def test_squeeze_axis_yaw_is_folded_over_the_half_turn(yaw_deg, expected):
 
 
 def test_squeeze_axis_yaw_ignores_a_tilt_about_the_squeeze_axis():
-    tilt = np.array([[math.cos(0.3), 0.0, math.sin(0.3)], [0.0, 1.0, 0.0],
-                     [-math.sin(0.3), 0.0, math.cos(0.3)]])
-    rotation = yaw_rotation(math.radians(10.0)) @ tilt
+    rotation = rpy_to_matrix((0.0, 0.3, math.radians(10.0)))
     assert squeeze_axis_yaw(rotation) == pytest.approx(10.0, abs=1e-9)
 
 
