@@ -33,18 +33,51 @@ def test_a_controller_is_lost_only_after_it_was_heard_and_then_silent_too_long()
         watch.heard('left', stamp)
         watch.heard('right', min(stamp, 2 * MS))
     assert watch.newly_lost(12 * MS) == ()
-    assert watch.newly_lost(13 * MS) == ('right',)
+    watch.heard('left', 12 * MS)
+    assert watch.newly_lost(13 * MS) == (), 'silent 11 ms, but only 10 ms behind the partner'
+    watch.heard('left', 14 * MS)
+    assert watch.newly_lost(14 * MS) == ('right',)
     assert watch.newly_lost(20 * MS) == (), 'a loss is reported once'
     watch.heard('left', 20 * MS + FUTURE_TOLERANCE_NS + 1)
     assert watch.newly_lost(31 * MS) == (), 'none heard: the watcher is behind, not judged'
-    watch.heard('right', 30 * MS)
+    for stamp in range(14 * MS, 31 * MS, 2 * MS):
+        watch.heard('right', stamp)
     assert watch.newly_lost(31 * MS) == ('left',), 'a command from the future is not believed'
     watch.restart()
     assert watch.lost_arms == () and watch.newly_lost(500 * MS) == ()
     watch.heard('left', 500 * MS)
-    watch.heard('right', 595 * MS)
+    for stamp in range(500 * MS, 596 * MS, 5 * MS):
+        watch.heard('right', stamp)
     assert watch.newly_lost(600 * MS, judge=False) == (), 'not judged (standby)'
     assert watch.newly_lost(600 * MS) == ('left',)
+
+
+def test_a_watcher_behind_on_both_arms_judges_no_controller_lost():
+    """
+    The realtime case: the tick's joint state is fresh, both arms' commands still queued.
+
+    The watcher took the commands up to 20 ms (left) and 22 ms (right) when the tick at 34 ms
+    runs: both silent for more than the 10 ms timeout at the tick, neither behind the other by
+    more, so neither is lost. Then the two streams come back 6 ms apart (as measured in a
+    realtime run): the left one first, which does not make the right one lost, since the left
+    was silent over the same time. Once the right controller dies (at 60 ms) while the left one
+    answers on, the right arm alone is lost.
+    """
+    watch = ControllerWatch(10 * MS)
+    watch.newly_lost(0)
+    for stamp in range(0, 23 * MS, 2 * MS):
+        watch.heard('right', stamp)
+        watch.heard('left', min(stamp, 20 * MS))
+    assert watch.newly_lost(34 * MS) == ()
+    for stamp in range(34 * MS, 42 * MS, 2 * MS):
+        watch.heard('left', stamp)
+    assert watch.newly_lost(42 * MS) == (), 'the left stream was silent too: not judged'
+    for stamp in range(40 * MS, 61 * MS, 2 * MS):
+        watch.heard('right', stamp)
+    for stamp in range(42 * MS, 76 * MS, 2 * MS):
+        watch.heard('left', stamp)
+    assert watch.newly_lost(70 * MS) == ()
+    assert watch.newly_lost(76 * MS) == ('right',)
 
 
 def kill_while_carrying(tmp_path, controller_timeout=None):
