@@ -515,18 +515,29 @@ def test_a_joint_state_missing_a_joint_is_refused_and_counted(realtime_controlle
 
 @pytest.mark.parametrize('lockstep', [True, False], ids=['lockstep', 'realtime'])
 def test_sensor_subscriptions_are_best_effort_and_commands_keep_one(harness_factory, lockstep):
-    """A best-effort driver connects to every sensor input; commands keep only the newest."""
+    """
+    A best-effort driver connects to every sensor input; commands keep only the newest.
+
+    In lockstep the commands are delivered reliably (every stamp is waited for); in realtime
+    every volatile input is taken best effort, the newest only, and the latched landing target
+    stays reliable so a late joiner still gets it.
+    """
     node = harness_factory(controller_node(lockstep)).node
     qos = {sub.topic_name: sub.qos_profile for sub in node.subscriptions}
     sensor = qos['/left/joint_states']
     assert sensor.reliability == ReliabilityPolicy.BEST_EFFORT
     assert sensor.depth == (contract.SENSOR_SUBSCRIPTION_DEPTH if lockstep else 1) <= 10
+    command_reliability = (ReliabilityPolicy.RELIABLE if lockstep
+                           else ReliabilityPolicy.BEST_EFFORT)
     for name in ('/left/ds_command', '/left/contact_wrench'):
-        assert qos[name].reliability == ReliabilityPolicy.RELIABLE and qos[name].depth == 1
+        assert qos[name].reliability == command_reliability and qos[name].depth == 1
     for topic in (contract.FT_WRENCH, contract.MOCAP_OBJECT_POSE):
         assert topic.subscription_qos(lockstep).reliability == ReliabilityPolicy.BEST_EFFORT
     assert contract.TORQUE_COMMAND.subscription_qos(lockstep).depth == (
         contract.TORQUE_COMMAND_SUBSCRIPTION_DEPTH if lockstep else 1)
+    assert contract.TORQUE_COMMAND.subscription_qos(lockstep).reliability == command_reliability
+    assert contract.LANDING_TARGET.subscription_qos(lockstep).reliability == (
+        ReliabilityPolicy.RELIABLE)
 
 
 # -- wrench_qp -----------------------------------------------------------------------------------
