@@ -25,10 +25,10 @@ import time
 from domain_coordinator import domain_id
 from dual_arm_control.core.exceptions import ConfigError
 from dual_arm_control.executables import EXECUTABLES
-from dual_arm_control.graph import GRAPHS, realtime_core_sets, run_parameters
+from dual_arm_control.graph import GRAPHS, run_parameters
 from dual_arm_control.nodes.command_signature import COMMAND_KEY_VARIABLE, launch_key
 from dual_arm_control.nodes.ds_motion_generator import phase_log_events, PHASE_LOG_PREFIX
-from dual_arm_control.nodes.process import REALTIME_CORES_VARIABLE, REALTIME_PRIORITY_VARIABLE
+from dual_arm_control.nodes.process import REALTIME_PRIORITY_VARIABLE
 from dual_arm_control.parameter_files import key_applies, parameter_file_problems
 from dual_arm_control.resources import config_path, load_yaml
 from dual_arm_control.scenario import load_scenario, scenario_path
@@ -131,18 +131,12 @@ class Launcher:
         for spec in self._nodes:
             log_file = open(self._log_dir / f'{spec.label}.log', 'w')
             self._log_files.append(log_file)
+            node_env = env
+            if self._realtime and spec.realtime_priority:
+                node_env = dict(env, **{REALTIME_PRIORITY_VARIABLE: str(spec.realtime_priority)})
             self._processes[spec.label] = subprocess.Popen(
                 self.command(spec), stdout=log_file, stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL, env=self.node_environment(env, spec),
-                preexec_fn=_die_with_parent)
-
-    def node_environment(self, env, spec):
-        """Return one node's environment: in realtime with its priority and its cores."""
-        if not self._realtime:
-            return env
-        cores = realtime_core_sets(os.sched_getaffinity(0)).get(spec.realtime_cores, ())
-        return dict(env, **{REALTIME_PRIORITY_VARIABLE: str(spec.realtime_priority or ''),
-                            REALTIME_CORES_VARIABLE: ','.join(map(str, sorted(cores)))})
+                stdin=subprocess.DEVNULL, env=node_env, preexec_fn=_die_with_parent)
 
     def command(self, spec):
         """Return the argv of one node: table values, this run's values, the user's file."""

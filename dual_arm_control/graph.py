@@ -19,8 +19,7 @@ class NodeSpec:
 
     realtime_priority: the SCHED_FIFO priority of the process in realtime mode (0: normal). The
     robot side (bridge) and the torque controllers, whose answers have a 2 ms deadline, come
-    first; the 200 Hz roles next. realtime_cores: the share of the machine's cores the process
-    is pinned to in realtime mode (ROBOT_CORES, CONTROL_CORES; '': any core).
+    first; the 200 Hz roles next.
     """
 
     executable: str
@@ -29,7 +28,6 @@ class NodeSpec:
     parameters: dict = field(default_factory=dict)
     param_files: tuple = ()
     realtime_priority: int = 0
-    realtime_cores: str = ''
 
     @property
     def full_name(self):
@@ -44,28 +42,6 @@ class NodeSpec:
 
 # SCHED_FIFO priorities in realtime mode: the FRI side, the 500 Hz controllers, the 200 Hz roles.
 ROBOT_PRIORITY, CONTROLLER_PRIORITY, PLANNER_PRIORITY = 40, 35, 20
-# The two shares of the cores in realtime mode: the bridge with the DS, and the two controllers
-# with the wrench QP and the tracker (realtime_core_sets).
-ROBOT_CORES, CONTROL_CORES = 'robot', 'control'
-
-
-def realtime_core_sets(available):
-    """
-    Return {share: set of cores} for realtime mode over the available cores ({}: below two).
-
-    The first half of the cores for ROBOT_CORES, the rest for CONTROL_CORES. Why: every node of
-    the 500 Hz loop runs at a SCHED_FIFO priority, and the kernel stops a core's real-time
-    processes for the rest of a second once they took 95 % of it (sched_rt_runtime_us); the
-    scheduler, free to stack them, did that every few seconds on two cores (stalls of 24-50 ms:
-    watchdog holds, controllers judged lost). Two fixed shares keep each core's real-time load
-    near 75 % (measured on two cores: bridge 42 % and DS 33 %; controllers 25 % each, QP 15 %,
-    tracker 9 %), and the controllers answer on a core the bridge's own work does not take.
-    """
-    cores = sorted(available)
-    if len(cores) < 2:
-        return {}
-    half = len(cores) // 2
-    return {ROBOT_CORES: set(cores[:half]), CONTROL_CORES: set(cores[half:])}
 
 
 def full_graph():
@@ -79,19 +55,17 @@ def full_graph():
     nodes = [
         NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',),
                  parameters={'lockstep_wait_for_tracker': True},
-                 realtime_priority=ROBOT_PRIORITY, realtime_cores=ROBOT_CORES),
+                 realtime_priority=ROBOT_PRIORITY),
         NodeSpec('object_tracker', 'object_tracker', param_files=('object_tracker.yaml',),
-                 realtime_priority=PLANNER_PRIORITY, realtime_cores=CONTROL_CORES),
-        NodeSpec('ds_motion_generator', 'ds_motion_generator', realtime_priority=PLANNER_PRIORITY,
-                 realtime_cores=ROBOT_CORES),
+                 realtime_priority=PLANNER_PRIORITY),
+        NodeSpec('ds_motion_generator', 'ds_motion_generator', realtime_priority=PLANNER_PRIORITY),
         NodeSpec('wrench_qp', 'wrench_qp', param_files=('wrench_qp.yaml',),
-                 realtime_priority=PLANNER_PRIORITY, realtime_cores=CONTROL_CORES),
+                 realtime_priority=PLANNER_PRIORITY),
     ]
     for arm in ARMS:
         nodes.append(NodeSpec('passive_controller', 'passive_controller', f'/{arm}',
                               {'arm': arm}, ('passive_controller.yaml',),
-                              realtime_priority=CONTROLLER_PRIORITY,
-                              realtime_cores=CONTROL_CORES))
+                              realtime_priority=CONTROLLER_PRIORITY))
     return tuple(nodes) + (cell_state_publisher(),)
 
 
@@ -104,12 +78,11 @@ def cell_state_publisher():
 def hold_graph():
     """Return the twin with one gravity-compensation test controller per arm."""
     nodes = [NodeSpec('sim_bridge', 'sim_bridge', param_files=('sim_bridge.yaml',),
-                      realtime_priority=ROBOT_PRIORITY, realtime_cores=ROBOT_CORES)]
+                      realtime_priority=ROBOT_PRIORITY)]
     for arm in ARMS:
         nodes.append(NodeSpec('gravity_comp_controller', 'controller', f'/{arm}',
                               {'arm': arm, 'mode': 'gravity'},
-                              realtime_priority=CONTROLLER_PRIORITY,
-                              realtime_cores=CONTROL_CORES))
+                              realtime_priority=CONTROLLER_PRIORITY))
     return tuple(nodes) + (cell_state_publisher(),)
 
 

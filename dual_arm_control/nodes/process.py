@@ -26,9 +26,6 @@ PUBLISHED_COUNTS_PREFIX = 'published counts: '
 # Environment variable with the SCHED_FIFO priority (1-99) a node's process runs at; the
 # launcher sets it per node in realtime mode (the robot side and the controllers highest).
 REALTIME_PRIORITY_VARIABLE = 'DUAL_ARM_REALTIME_PRIORITY'
-# Environment variable with the cores (comma-separated numbers) a node's process is pinned to;
-# the launcher sets it per node in realtime mode (graph.realtime_core_sets).
-REALTIME_CORES_VARIABLE = 'DUAL_ARM_REALTIME_CORES'
 
 
 class CountingPublisher(Publisher):
@@ -119,22 +116,6 @@ def use_realtime_priority(priority):
     return f'running at real-time priority {priority} (SCHED_FIFO)'
 
 
-def use_realtime_cores(cores):
-    """
-    Pin this process to `cores` (comma-separated core numbers, or None: leave it); return a note.
-
-    Called before rclpy starts its threads, which inherit the affinity. A malformed list or one
-    the OS refuses leaves the process on every core, and the note says so.
-    """
-    if not cores:
-        return ''
-    try:
-        os.sched_setaffinity(0, {int(core) for core in cores.split(',')})
-    except (ValueError, OSError) as error:
-        return f'pinning to cores {cores} refused ({error}); running on any core'
-    return f'pinned to cores {cores}'
-
-
 def run_node(node_factory, name, args=None, drain=False, on_exit=None):
     """
     Run one node until Ctrl-C or SIGTERM, the Jazzy way; return the process exit code.
@@ -147,12 +128,10 @@ def run_node(node_factory, name, args=None, drain=False, on_exit=None):
     counts and is destroyed. on_exit(node), if given, runs before that and returns the exit
     code (0 otherwise).
     """
-    notes = (use_realtime_priority(os.environ.get(REALTIME_PRIORITY_VARIABLE)),
-             use_realtime_cores(os.environ.get(REALTIME_CORES_VARIABLE)))
+    priority_note = use_realtime_priority(os.environ.get(REALTIME_PRIORITY_VARIABLE))
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    for note in notes:
-        if note:
-            rclpy.logging.get_logger(name).info(note)
+    if priority_note:
+        rclpy.logging.get_logger(name).info(priority_note)
     stop = StopRequest()
     try:
         node = node_factory()
