@@ -39,7 +39,7 @@ def test_a_controller_is_lost_only_after_it_was_heard_and_then_silent_too_long()
     assert watch.newly_lost(14 * MS) == ('right',)
     assert watch.newly_lost(20 * MS) == (), 'a loss is reported once'
     watch.heard('left', 20 * MS + FUTURE_TOLERANCE_NS + 1)
-    assert watch.newly_lost(31 * MS) == (), 'none heard: the watcher is behind, not judged'
+    assert watch.newly_lost(31 * MS) == (), 'its partner silent too: not judged'
     for stamp in range(14 * MS, 31 * MS, 2 * MS):
         watch.heard('right', stamp)
     assert watch.newly_lost(31 * MS) == ('left',), 'a command from the future is not believed'

@@ -12,9 +12,8 @@ reached it for 20-26 ms, and the two streams came back 6 ms apart (the robot had
 arm for more than two cycles). A controller never heard is not judged (the graph may still be
 starting), nor one whose partner is silent too (with every arm held by the robot a halt would
 command no one); a loss is kept until restart() (a new episode after a clock reset), so the
-task is stopped once.
-Stamps further ahead of the newest cycle than FUTURE_TOLERANCE are ignored, so a stray message
-from the future cannot mask a dead controller.
+task is stopped once. Stamps further ahead of the newest cycle than FUTURE_TOLERANCE are
+ignored, so a stray message from the future cannot mask a dead controller.
 """
 
 from dual_arm_control.core.arms import ARMS
