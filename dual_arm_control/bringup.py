@@ -365,7 +365,8 @@ def supervise(args, launcher):
 
 def _write_results(args):
     """Compute metrics and plots from the bridge's ground-truth log; return the exit code."""
-    from dual_arm_control.evaluation.episode import evaluate_episode, metrics_summary
+    from dual_arm_control.evaluation.episode import (clock_stall_note, evaluate_episode,
+                                                     metrics_summary)
     try:
         log = (args.out / 'logs' / 'ds_motion_generator.log').read_text()
     except OSError:
@@ -379,6 +380,8 @@ def _write_results(args):
     (args.out / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
     print('dual_arm_bringup: metrics (all in metrics.json)')
     print(metrics_summary(metrics))
+    if metrics.get('cycle_stalls'):
+        print(f'dual_arm_bringup: {clock_stall_note(metrics)}')
     if metrics.get('success'):
         print('dual_arm_bringup: episode succeeded')
         return EXIT_SUCCESS

@@ -1,7 +1,8 @@
 """
 The bridge's counters: their values (saved in the trajectory log too) and /diagnostics.
 
-One status for the bridge (mode, sim time, cycles, late cycles, real-time factor) and one per
+One status for the bridge (mode, sim time, cycles, late cycles, stalls and the longest gap
+between two cycles in realtime, real-time factor) and one per
 arm with the FRI counters; an arm is WARN once anything was refused, clamped or held.
 """
 
@@ -14,11 +15,15 @@ from dual_arm_control.nodes.messages import time_msg
 from dual_arm_control.runtime.fri import REFUSAL_REASONS
 
 
-def counter_values(mode, twin, fri, late_cycles, first_cycle_wall):
-    """Return {status name: {key: value}} of the counters; first_cycle_wall None: not started."""
+def counter_values(mode, twin, fri, cycle_gaps, first_cycle_wall):
+    """
+    Return {status name: {key: value}} of the counters; first_cycle_wall None: not started.
+
+    cycle_gaps: the CycleGaps of the realtime FRI clock (zero in lockstep).
+    """
     wall = time.monotonic() - first_cycle_wall if first_cycle_wall else 0.0
     bridge = {'mode': mode, 'sim_time': twin.time, 'cycles': fri.cycles,
-              'late_cycles': late_cycles,
+              **cycle_gaps.as_dict(),
               'real_time_factor': twin.time / wall if wall > 0.0 else 0.0}
     values = {'sim_bridge': bridge}
     for arm in contract.ARMS:
@@ -35,8 +40,10 @@ def diagnostics_message(values, stamp_ns):
         trouble = (status_values.get('watchdog_holds', 0)
                    + status_values.get('torque_clamps', 0)
                    + sum(status_values.get(f'refused_{r}', 0) for r in REFUSAL_REASONS))
-        status.level = DiagnosticStatus.WARN if trouble else DiagnosticStatus.OK
-        status.message = 'commands refused, clamped or missing' if trouble else 'ok'
+        stalls = status_values.get('cycle_stalls', 0)
+        status.level = DiagnosticStatus.WARN if trouble or stalls else DiagnosticStatus.OK
+        status.message = ('commands refused, clamped or missing' if trouble else
+                          f'{stalls} stalls of the FRI clock' if stalls else 'ok')
         status.values = [KeyValue(key=key, value=diagnostic_value(value))
                          for key, value in status_values.items()]
         msg.status.append(status)

@@ -44,7 +44,7 @@ from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import NodeParameters
 from dual_arm_control.runtime.fri import FriCycle
 from dual_arm_control.runtime.node_settings import node_table
-from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
+from dual_arm_control.runtime.timing import CycleGaps, seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import load_scenario
 from dual_arm_control.trajectory_log import TrajectoryRecorder
 import numpy as np
@@ -59,8 +59,6 @@ from sim_bridge.robot_streams import RobotStreams
 from sim_bridge.twin import DualArmTwin
 from std_srvs.srv import Trigger
 
-# A realtime cycle is late when it starts more than this fraction of a period after its due time.
-LATE_CYCLE_TOLERANCE = 0.5
 LOG_THROTTLE_PERIOD = 1.0
 # Lockstep: wall time without answers before the wait is reported as a warning [s].
 WAITING_WARNING_DELAY = 2.0
@@ -99,7 +97,7 @@ class SimBridge(Node):
         self._ground_truth_period_ns = seconds_to_ns(settings['ground_truth_period'])
         self.finished = False
         self.paused = False
-        self.late_cycles = 0
+        self.cycle_gaps = CycleGaps(self.fri_period)
         self._cycle = None
         self._awaited_answers = set()
         self._next_diagnostics_ns = 0
@@ -107,7 +105,6 @@ class SimBridge(Node):
         self._last_publish_wall = -math.inf
         self._state_published_wall = -math.inf
         self._first_cycle_wall = None
-        self._last_tick_wall = None
         self._last_warning_wall = {}
         self._recorder = None
         self._create_interfaces()
@@ -193,11 +190,7 @@ class SimBridge(Node):
         """Realtime: one FRI deadline; arms without a command for the cycle hold."""
         if self.paused:
             return
-        now = time.monotonic()
-        if self._last_tick_wall is not None and \
-                now - self._last_tick_wall > self.fri_period * (1.0 + LATE_CYCLE_TOLERANCE):
-            self.late_cycles += 1
-        self._last_tick_wall = now
+        self.cycle_gaps.tick(time.monotonic())
         for arm in self.fri.missing():
             self._warn_throttled((arm, 'watchdog'), (
                 f'{arm}: no torque command for the last FRI cycle (watchdog holds so far: '
@@ -340,7 +333,7 @@ class SimBridge(Node):
 
     def diagnostic_values(self):
         """Return {status name: {key: value}} of the counters (also saved in the log)."""
-        return counter_values(self.mode, self.twin, self.fri, self.late_cycles,
+        return counter_values(self.mode, self.twin, self.fri, self.cycle_gaps,
                               self._first_cycle_wall)
 
     def _publish_diagnostics(self):
@@ -356,6 +349,7 @@ class SimBridge(Node):
         self.twin.reset(seed if seed >= 0 else None)
         self._awaited_answers = set()
         self.paused = False
+        self.cycle_gaps.restart()
         if self._started:  # else the start, once the graph is ready, begins the episode
             self._start_episode()
         response.success = True
@@ -384,7 +378,7 @@ class SimBridge(Node):
         """Write the episode's ground truth and the counters to `trajectory_log` (if set)."""
         if self._recorder is None:
             return None
-        save_episode_log(self._recorder, self.fri, self.late_cycles, self._first_cycle_wall,
+        save_episode_log(self._recorder, self.fri, self.cycle_gaps, self._first_cycle_wall,
                          self.twin.seed, self._trajectory_log)
         return self._trajectory_log
 

@@ -5,17 +5,18 @@ import time
 import rclpy
 
 
-def save_episode_log(recorder, fri, late_cycles, first_cycle_wall, seed, path):
+def save_episode_log(recorder, fri, cycle_gaps, first_cycle_wall, seed, path):
     """
     Write an episode's trajectory log (TrajectoryRecorder) with its counters to path.
 
-    The counters: the FRI cycle's (refusals, holds, clamps, cycles), the realtime late cycles,
-    the wall time since the first cycle, the FRI period and the twin's noise seed of the episode
-    (which /sim/reset may have changed from the scenario's).
+    The counters: the FRI cycle's (refusals, holds, clamps, cycles), the realtime clock's
+    (CycleGaps: late cycles, stalls, longest gap [s]), the wall time since the first cycle,
+    the FRI period and the twin's noise seed of the episode (which /sim/reset may have
+    changed from the scenario's).
     """
     recorder.counters.update(fri.log_counters())
+    recorder.counters.update(cycle_gaps.as_dict())
     recorder.counters.update({
-        'late_cycles': late_cycles,
         'wall_time': time.monotonic() - first_cycle_wall if first_cycle_wall else 0.0,
         'fri_period': fri.backend.fri_period, 'seed': seed})
     recorder.save(path)

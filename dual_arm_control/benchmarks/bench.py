@@ -91,7 +91,9 @@ def _print_realtime(result):
           f'{result["episodes_home"]} came home): {counters.get("late_cycles", 0)} late FRI '
           f'cycles of {cycles} ({100.0 * counters.get("late_cycles", 0) / cycles:.2f} %), '
           f'{late_commands} late commands ({50.0 * late_commands / cycles:.2f} %), watchdog '
-          f'holds {counters.get("watchdog_hold_count", 0)}')
+          f'holds {counters.get("watchdog_hold_count", 0)}, FRI clock stalls (5 cycles or more) '
+          f'{counters.get("cycle_stalls", 0)}, longest gap '
+          f'{1e3 * counters.get("longest_cycle_gap", 0.0):.1f} ms')
     expected = result['wall'] / DS_PERIOD
     gap = result['ds_gap_p99_ms']
     print(f'  DS ticks seen {result["ds_ticks"]} (200 Hz over the wall time: {expected:.0f}), '

@@ -159,10 +159,10 @@ def _realtime_run(out, duration, domain):
     node.destroy_node()
     rclpy.try_shutdown(context=context)
     with np.load(out / 'trajectory.npz') as archive:
-        counters = {name: int(archive[name]) for name in archive.files
+        counters = {name: archive[name].item() for name in archive.files
                     if archive[name].shape == ()
                     and ('late' in name or 'hold' in name or 'repeat' in name
-                         or name == 'cycles')}
+                         or name in ('cycles', 'cycle_stalls', 'longest_cycle_gap'))}
     gaps = np.diff(driver.tick_walls)
     episodes = driver.episodes
     return {'wall': wall, 'counters': counters, 'ds_ticks': len(driver.tick_walls),

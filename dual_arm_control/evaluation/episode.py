@@ -36,7 +36,7 @@ METRIC_KEYS = (
     'max_joint_speed_ratio_left', 'max_joint_speed_ratio_right', 'joint_speed_limit_time_left',
     'joint_speed_limit_time_right', 'landing_error_in_container', 'landed_in_container',
     'impact_speed_relative_left', 'impact_speed_relative_right', 'belt_drag', 'start_refusal',
-    't_task_release', 'grasp_count',
+    't_task_release', 'grasp_count', 'late_cycles', 'cycle_stalls', 'longest_cycle_gap',
 )
 
 # Pass/fail thresholds of an episode, per task family.
@@ -50,6 +50,8 @@ PLACE_SPEED_LIMIT = 0.1
 PLACE_TILT_LIMIT = 5.0
 SLIP_LIMIT = 0.01
 HOLD_DRIFT_LIMIT = 0.001
+# The kernel's real-time budget per CPU and second (Linux; -1: unlimited).
+RT_RUNTIME_FILE = '/proc/sys/kernel/sched_rt_runtime_us'
 
 
 def _time(t, index):
@@ -185,6 +187,7 @@ def episode_metrics(scenario, data, cell, start_time=EPISODE_START_TIME, events=
         result[f'joint_speed_limit_time_{arm}'] = time_above
     for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
         result[counter] = int(data[counter]) if counter in data else None
+    result.update(realtime_clock_metrics(data))
     collision_times = data.get('arm_collision_times', np.zeros(0))
     result['arm_collision_count'] = int(len(collision_times))
     result['first_arm_collision'] = None
@@ -241,6 +244,18 @@ def _success(scenario, result):
     return grasped and no_slip
 
 
+def realtime_clock_metrics(data):
+    """
+    Return the realtime FRI clock's late cycles, stalls and longest gap [s] of a log.
+
+    All None where no realtime clock ticked (lockstep, or a log without them).
+    """
+    ticked = 'longest_cycle_gap' in data and float(data['longest_cycle_gap']) > 0.0
+    return {key: cast(data[key]) if ticked else None
+            for key, cast in (('late_cycles', int), ('cycle_stalls', int),
+                              ('longest_cycle_gap', float))}
+
+
 def hold_metrics(data):
     """Return the metrics of a hold run (twin under a gravity-compensation test controller)."""
     result = {'sim_duration': float(data['t'][-1] - data['t'][0])}
@@ -250,6 +265,7 @@ def hold_metrics(data):
         result[f'max_tool_drift_{arm}'] = float(drift.max())
     for counter in ('torque_clamp_count', 'refused_message_count', 'watchdog_hold_count'):
         result[counter] = int(data[counter]) if counter in data else None
+    result.update(realtime_clock_metrics(data))
     result['success'] = all(result[f'max_tool_drift_{arm}'] <= HOLD_DRIFT_LIMIT for arm in ARMS)
     return result
 
@@ -290,11 +306,27 @@ SUMMARY_FIELDS = (('contact_time_gap', 'contact gap', 1e3, 'ms'),
                   ('landing_error_in_container', 'distance to the container centre', 1e3,
                    'mm'),
                   ('place_position_error', 'place error', 1e3, 'mm'),
-                  ('cycle_time', 'cycle time', 1.0, 's'))
+                  ('cycle_time', 'cycle time', 1.0, 's'),
+                  ('cycle_stalls', 'FRI clock stalls (5 cycles or more)', 1, ''),
+                  ('longest_cycle_gap', 'longest FRI cycle gap', 1e3, 'ms'))
 
 
 def metrics_summary(metrics):
     """Return one line per key metric of an episode (all of them are in metrics.json)."""
-    return '\n'.join(f'  {label}: {metrics[key] * scale:.3g} {unit}'
+    return '\n'.join(f'  {label}: {metrics[key] * scale:.3g} {unit}'.rstrip()
                      for key, label, scale, unit in SUMMARY_FIELDS
                      if metrics.get(key) is not None)
+
+
+def clock_stall_note(metrics, rt_runtime_file=RT_RUNTIME_FILE):
+    """Return what the stalls of a realtime run's FRI clock mean, for the console."""
+    try:
+        budget = f'{int(Path(rt_runtime_file).read_text()):d} us'
+    except (OSError, ValueError):
+        budget = 'unknown here'
+    return (f'the FRI clock stalled {metrics["cycle_stalls"]} times (gaps of 5 cycles or more, '
+            f'the longest {metrics["longest_cycle_gap"] * 1e3:.0f} ms) and the robots held an '
+            f'arm {metrics["watchdog_hold_count"]} times: the real-time processes did not get '
+            f'the CPU they need at this FRI rate. On Linux the kernel stops every SCHED_FIFO '
+            f'task of a CPU for the rest of a second once they used sched_rt_runtime_us of it '
+            f'({budget}); see docs/performance.md.')

@@ -1,6 +1,8 @@
 """
 Time on the FRI grid: nanoseconds, the tick schedule of slower loops, estimates at a cycle.
 
+Also the wall-clock pacing of a realtime loop (late cycles, stalls).
+
 Every process computes the same ticks from the same cycle stamps, which is what keeps a
 multi-process lockstep run and an in-process run on the same schedule.
 """
@@ -51,6 +53,47 @@ class TickSchedule:
     def reset(self):
         """Forget the previous tick."""
         self.last_tick_ns = None
+
+
+class CycleGaps:
+    """
+    The wall-clock gaps between the cycles of a realtime loop: late cycles, stalls, the longest.
+
+    A cycle is late when it starts more than late_tolerance of a period after its due time. A
+    stall is a gap of stall_periods periods or more: that many commands missing in a row on a
+    real FRI connection, which a toss does not survive (on Linux the kernel's real-time
+    throttling stops every SCHED_FIFO task of a CPU for up to 50 ms of each second once they
+    used 95 % of it). A gap while the loop was paused is not one: restart() after a pause.
+    """
+
+    def __init__(self, period, late_tolerance=0.5, stall_periods=5):
+        if period <= 0.0:
+            raise ValueError(f'period must be positive, got {period}')
+        self.period = period
+        self.late_gap = period * (1.0 + late_tolerance)
+        self.stall_gap = period * stall_periods
+        self.late = 0
+        self.stalls = 0
+        self.longest = 0.0
+        self._last = None
+
+    def tick(self, now):
+        """Count the cycle starting at wall time now [s]."""
+        if self._last is not None:
+            gap = now - self._last
+            self.late += gap > self.late_gap
+            self.stalls += gap >= self.stall_gap
+            self.longest = max(self.longest, gap)
+        self._last = now
+
+    def restart(self):
+        """Forget the previous cycle (the loop was paused)."""
+        self._last = None
+
+    def as_dict(self):
+        """Return the counters: late cycles, stalls and the longest gap [s]."""
+        return {'late_cycles': self.late, 'cycle_stalls': self.stalls,
+                'longest_cycle_gap': self.longest}
 
 
 def estimate_at(estimate, t_ns):
