@@ -17,7 +17,7 @@ from dual_arm_control.core.tracker import TrackerConfig
 from dual_arm_control.core.wrench_distribution import WrenchDistributorConfig
 
 FRI_PERIODS = (0.001, 0.002, 0.005)
-"""KUKA FRI send periods that allow torque overlay [s]."""
+"""FRI send periods the twin runs [s]; torque overlay on the iiwa needs 2 ms or less."""
 FRI_PERIOD = 0.002
 """The default FRI cycle [s] (500 Hz)."""
 DS_PERIOD = 0.005
