@@ -372,6 +372,9 @@ def test_controller_waits_for_ds_and_wrench_on_lockstep_ticks(lockstep_controlle
     np.testing.assert_allclose(efforts(commands[3]), expected_torque(q, dq, command, wrench),
                                rtol=0.0, atol=1e-9)
     assert node.step.counters['holds_no_command'] == node.step.counters['holds_stale_command'] == 0
+    # That cycle ran on a DS command one tick old (its wrench was the tick's own).
+    assert (node.step.counters['ds_command_behind'], node.step.counters['ds_command_lag_max_ms'],
+            node.step.counters['contact_wrench_behind']) == (1, 6, 0)
 
 
 def test_controller_holds_without_fresh_command_and_refuses_nan(controller):

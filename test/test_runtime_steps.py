@@ -268,3 +268,36 @@ def test_controller_waits_for_tick_inputs_only_on_new_ticks(controller):
     controller.cycle(joint_state(6 * MS, q, dq))
     controller.cycle(joint_state(0, q, dq))
     assert controller.counters['schedule_restarts'] == 1
+
+
+def tick_inputs(stamp_ns):
+    """Return a DS command and a contact wrench stamped with a DS tick."""
+    return (arm_command_sample(stamp_ns, np.zeros(3), [0.0, 0.0, 0.0, 1.0], np.zeros(3),
+                               np.zeros(3)),
+            wrench_sample(stamp_ns, np.zeros(3), np.zeros(3)))
+
+
+def run_ticks(controller, arrivals):
+    """Answer cycles 0-10 ms on the 2 ms grid; arrivals = {cycle ms: [tick ms, ...]} before it."""
+    q, dq = CELL.arm('left').q_home, np.zeros(7)
+    for cycle_ms in range(0, 12, 2):
+        for tick_ms in arrivals.get(cycle_ms, []):
+            command, wrench = tick_inputs(tick_ms * MS)
+            controller.command(command)
+            controller.wrench(wrench)
+        controller.cycle(joint_state(cycle_ms * MS, q, dq))
+    return {key: controller.counters[key] for key in (
+        'ds_command_behind', 'ds_command_lag_max_ms', 'contact_wrench_behind',
+        'contact_wrench_lag_max_ms')}
+
+
+def test_inputs_of_the_newest_tick_are_never_behind(controller):
+    """As in lockstep: each tick's command and wrench arrive before its cycle (ticks 0, 6, 10)."""
+    assert set(run_ticks(controller, {0: [0], 6: [6], 10: [10]}).values()) == {0}
+
+
+def test_inputs_a_cycle_late_are_counted_behind_with_their_lag(controller):
+    """Realtime: tick 6's inputs come a cycle after it, tick 10's not at all before 10 ms."""
+    assert run_ticks(controller, {0: [0], 8: [6]}) == {
+        'ds_command_behind': 2, 'ds_command_lag_max_ms': 6,
+        'contact_wrench_behind': 2, 'contact_wrench_lag_max_ms': 6}

@@ -10,6 +10,11 @@ a stretch of free_gains_after without a contact wrench once touched (the real cl
 back). In lockstep, a node answers a DS tick cycle only once the command and wrench of that
 tick arrived (needs_tick_inputs).
 
+How far the planners are behind (zero in lockstep): the cycles answered with a DS command or a
+contact wrench older than the newest DS tick due (`*_behind`), and the longest such lag, from
+the command's tick to the newest tick (`*_lag_max_ms`). In realtime these lags, not the load
+as such, decide the toss's release velocity (docs/performance.md).
+
 With a gravity-compensated torque interface (KUKA FRI torque mode: the robot adds its own
 gravity compensation) the command is the joint torque minus the model's g(q), so gravity is not
 compensated twice; the torque limits still bound the whole joint torque.
@@ -23,7 +28,9 @@ import numpy as np
 
 COUNTERS = ('cycles', 'ds_commands_received', 'contact_wrenches_received', 'repeated_answers',
             'holds_no_command', 'holds_stale_command', 'holds_by_controller', 'saturated',
-            'no_contact_wrench', 'stale_contact_wrench', 'schedule_restarts')
+            'no_contact_wrench', 'stale_contact_wrench', 'schedule_restarts',
+            'ds_command_behind', 'contact_wrench_behind', 'ds_command_lag_max_ms',
+            'contact_wrench_lag_max_ms')
 
 
 class ControllerStep:
@@ -117,7 +124,10 @@ class ControllerStep:
         if abs(stamp_ns - command.stamp_ns) > self.command_timeout_ns:
             self.counters['holds_stale_command'] += 1
             return self.hold(q, dq)
+        self._count_lag('ds_command', command.stamp_ns)
         contact_wrench = None
+        if self._wrench is not None:
+            self._count_lag('contact_wrench', self._wrench.stamp_ns)
         if self._wrench is None:
             self.counters['no_contact_wrench'] += 1
         elif abs(stamp_ns - self._wrench.stamp_ns) > self.command_timeout_ns:
@@ -133,6 +143,14 @@ class ControllerStep:
         self.counters['holds_by_controller'] += int(result.held)
         self.counters['saturated'] += int(result.saturated)
         return result.torque
+
+    def _count_lag(self, name, input_stamp_ns):
+        """Count an input (DS command or contact wrench) older than the newest DS tick due."""
+        lag_ns = self._schedule.last_tick_ns - input_stamp_ns
+        if lag_ns > 0:
+            self.counters[f'{name}_behind'] += 1
+            self.counters[f'{name}_lag_max_ms'] = max(self.counters[f'{name}_lag_max_ms'],
+                                                      lag_ns // 1_000_000)
 
     def _end_episode_without_contact(self, stamp_ns, contact_wrench):
         """Start a new controller episode once no contact wrench came for free_gains_after."""
