@@ -12,8 +12,8 @@ tick arrived (needs_tick_inputs).
 
 How far the planners are behind (zero in lockstep): the cycles answered with a DS command or a
 contact wrench older than the newest DS tick due (`*_behind`), and the longest such lag, from
-the command's tick to the newest tick (`*_lag_max_ms`). In realtime these lags, not the load
-as such, decide the toss's release velocity (docs/performance.md).
+the command's tick to the newest tick (`*_lag_max_ms`). In realtime these lags cost the toss
+release velocity (docs/performance.md).
 
 With a gravity-compensated torque interface (KUKA FRI torque mode: the robot adds its own
 gravity compensation) the command is the joint torque minus the model's g(q), so gravity is not
