@@ -5,7 +5,9 @@ from pathlib import Path
 import subprocess
 import sys
 
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from dual_arm_control.benchmarks.bench import STAGES
+from dual_arm_control.benchmarks.graph_bench import controller_lags
 
 SCRIPTS = Path(sys.prefix) / 'bin'
 
@@ -36,3 +38,17 @@ def test_bench_refuses_bad_arguments():
     result = subprocess.run([str(SCRIPTS / 'dual_arm_bench'), '--duration', '0'],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and '--duration' in result.stderr
+
+
+def test_the_controller_lags_are_read_from_a_controller_status_only():
+    values = {'cycles': '1988', 'ds_command_behind': '1948', 'contact_wrench_behind': '1972',
+              'ds_command_lag_max_ms': '48', 'contact_wrench_lag_max_ms': '112', 'saturated': '0'}
+    status = DiagnosticStatus(name='right/passive_controller', values=[
+        KeyValue(key=key, value=value) for key, value in values.items()])
+    assert controller_lags(status) == {
+        'cycles': 1988, 'ds_command_behind': 1948, 'contact_wrench_behind': 1972,
+        'ds_command_lag_max_ms': 48, 'contact_wrench_lag_max_ms': 112}
+    bridge = DiagnosticStatus(name='sim_bridge', values=[KeyValue(key='cycles', value='2000')])
+    assert controller_lags(bridge) is None
+    status.values[0].value = 'many'
+    assert controller_lags(status) is None

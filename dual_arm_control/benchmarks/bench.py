@@ -100,6 +100,14 @@ def _print_realtime(result):
           f'gaps > 9 ms {result["ds_late_ticks"]} '
           f'({100.0 * result["ds_late_ticks"] / max(result["ds_ticks"], 1):.2f} %), p99 gap '
           f'{gap if gap is None else round(gap, 1)} ms')
+    for name, lags in sorted(result.get('controller_lags', {}).items()):
+        shares = {key: 100.0 * lags[f'{key}_behind'] / max(lags['cycles'], 1)
+                  for key in ('ds_command', 'contact_wrench')}
+        print(f'  {name}: DS command a tick or more old in {lags["ds_command_behind"]} of '
+              f'{lags["cycles"]} cycles ({shares["ds_command"]:.0f} %, longest '
+              f'{lags["ds_command_lag_max_ms"]} ms), contact wrench in '
+              f'{lags["contact_wrench_behind"]} ({shares["contact_wrench"]:.0f} %, longest '
+              f'{lags["contact_wrench_lag_max_ms"]} ms)')
     total = 0.0
     for label, seconds in sorted(result['cpu'].items()):
         share = 100 * seconds / result['wall']

@@ -3,8 +3,10 @@ Measurements of the whole node graph on this machine, run by `dual_arm_bench`.
 
 1. Lockstep real-time factor of the full graph on the paper_toss episode (sim s / wall s).
 2. Realtime mode, repeated paper_toss episodes for a given wall time: late FRI cycles (500 Hz),
-   late commands and watchdog holds counted by the bridge, DS ticks (200 Hz) and their
-   wall-clock gaps seen on /dual_arm/phase, the episodes, and the CPU share of every process.
+   late commands, watchdog holds and clock stalls counted by the bridge, DS ticks (200 Hz) and
+   their wall-clock gaps seen on /dual_arm/phase, how far behind the newest DS tick the
+   controllers' DS commands and contact wrenches were (their /diagnostics), the episodes, and
+   the CPU share of every process.
 """
 
 import json
@@ -84,6 +86,24 @@ def lockstep_real_time_factor(out):
     return metrics['sim_duration'], wall, stepping, code
 
 
+def controller_lags(status):
+    """
+    Return a passive controller's planner-lag counters from its DiagnosticStatus, else None.
+
+    {cycles, ds_command_behind, contact_wrench_behind, ds_command_lag_max_ms,
+    contact_wrench_lag_max_ms}, as integers.
+    """
+    values = {value.key: value.value for value in status.values}
+    keys = ('cycles', 'ds_command_behind', 'contact_wrench_behind', 'ds_command_lag_max_ms',
+            'contact_wrench_lag_max_ms')
+    if not all(key in values for key in keys):
+        return None
+    try:
+        return {key: int(values[key]) for key in keys}
+    except ValueError:
+        return None
+
+
 class EpisodeDriver:
     """
     Watches /dual_arm/phase of a running graph and starts the next episode with /sim/reset.
@@ -101,8 +121,17 @@ class EpisodeDriver:
         self.tick_walls = []
         self.episodes = []
         self._events = set()
+        self.controller_lags = {}
         node.create_subscription(contract.PHASE.msg_type, contract.PHASE.name, self._on_phase,
                                  contract.PHASE.qos)
+        node.create_subscription(contract.DIAGNOSTICS.msg_type, contract.DIAGNOSTICS.name,
+                                 self._on_diagnostics, contract.DIAGNOSTICS.qos)
+
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            lags = controller_lags(status)
+            if lags is not None:
+                self.controller_lags[status.name] = lags
 
     def _on_phase(self, msg):
         self.tick_walls.append(time.monotonic())
@@ -168,7 +197,7 @@ def _realtime_run(out, duration, domain):
     return {'wall': wall, 'counters': counters, 'ds_ticks': len(driver.tick_walls),
             'ds_late_ticks': int(np.sum(gaps > 1.5 * DS_PERIOD * 1.2)),
             'ds_gap_p99_ms': float(np.percentile(gaps, 99) * 1e3) if gaps.size else None,
-            'episodes': len(episodes),
+            'episodes': len(episodes), 'controller_lags': driver.controller_lags,
             'episodes_released': sum('released' in events for events in episodes),
             'episodes_home': sum('home' in events for events in episodes),
             'cpu': {label: seconds - cpu_start.get(pid, (label, 0.0))[1]
