@@ -21,6 +21,7 @@ from domain_coordinator import domain_id
 from dual_arm_control import contract
 from dual_arm_control.graph import RUN_FOREVER
 from dual_arm_control.resources import config_path
+from dual_arm_control.runtime.controller_step import LAG_COUNTERS
 from dual_arm_control.runtime.node_settings import DS_PERIOD
 from dual_arm_control.scenario import load_scenario
 import numpy as np
@@ -90,12 +91,10 @@ def controller_lags(status):
     """
     Return a passive controller's planner-lag counters from its DiagnosticStatus, else None.
 
-    {cycles, ds_command_behind, contact_wrench_behind, ds_command_lag_max_ms,
-    contact_wrench_lag_max_ms}, as integers.
+    {cycles, and each of ControllerStep's LAG_COUNTERS}, as integers.
     """
     values = {value.key: value.value for value in status.values}
-    keys = ('cycles', 'ds_command_behind', 'contact_wrench_behind', 'ds_command_lag_max_ms',
-            'contact_wrench_lag_max_ms')
+    keys = ('cycles',) + LAG_COUNTERS
     if not all(key in values for key in keys):
         return None
     try:

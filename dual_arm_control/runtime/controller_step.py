@@ -26,11 +26,11 @@ from dual_arm_control.runtime.signals import TorqueSample
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 import numpy as np
 
+LAG_COUNTERS = ('ds_command_behind', 'contact_wrench_behind', 'ds_command_lag_max_ms',
+                'contact_wrench_lag_max_ms')
 COUNTERS = ('cycles', 'ds_commands_received', 'contact_wrenches_received', 'repeated_answers',
             'holds_no_command', 'holds_stale_command', 'holds_by_controller', 'saturated',
-            'no_contact_wrench', 'stale_contact_wrench', 'schedule_restarts',
-            'ds_command_behind', 'contact_wrench_behind', 'ds_command_lag_max_ms',
-            'contact_wrench_lag_max_ms')
+            'no_contact_wrench', 'stale_contact_wrench', 'schedule_restarts') + LAG_COUNTERS
 
 
 class ControllerStep:
@@ -124,10 +124,9 @@ class ControllerStep:
         if abs(stamp_ns - command.stamp_ns) > self.command_timeout_ns:
             self.counters['holds_stale_command'] += 1
             return self.hold(q, dq)
-        self._count_lag('ds_command', command.stamp_ns)
+        self._count_lag('ds_command', command)
+        self._count_lag('contact_wrench', self._wrench)
         contact_wrench = None
-        if self._wrench is not None:
-            self._count_lag('contact_wrench', self._wrench.stamp_ns)
         if self._wrench is None:
             self.counters['no_contact_wrench'] += 1
         elif abs(stamp_ns - self._wrench.stamp_ns) > self.command_timeout_ns:
@@ -144,9 +143,11 @@ class ControllerStep:
         self.counters['saturated'] += int(result.saturated)
         return result.torque
 
-    def _count_lag(self, name, input_stamp_ns):
-        """Count an input (DS command or contact wrench) older than the newest DS tick due."""
-        lag_ns = self._schedule.last_tick_ns - input_stamp_ns
+    def _count_lag(self, name, sample):
+        """Count an input (DS command or contact wrench; None: none yet) older than the tick."""
+        if sample is None:
+            return
+        lag_ns = self._schedule.last_tick_ns - sample.stamp_ns
         if lag_ns > 0:
             self.counters[f'{name}_behind'] += 1
             self.counters[f'{name}_lag_max_ms'] = max(self.counters[f'{name}_lag_max_ms'],

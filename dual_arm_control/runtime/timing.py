@@ -69,7 +69,6 @@ class CycleGaps:
     def __init__(self, period, late_tolerance=0.5, stall_periods=5):
         if period <= 0.0:
             raise ValueError(f'period must be positive, got {period}')
-        self.period = period
         self.late_gap = period * (1.0 + late_tolerance)
         self.stall_gap = period * stall_periods
         self.late = 0
