@@ -27,6 +27,7 @@ from dual_arm_control.nodes.object_tracker import ObjectTrackerNode
 from dual_arm_control.nodes.passive_controller import PassiveControllerNode
 from dual_arm_control.nodes.wrench_qp import WrenchQPNode
 from dual_arm_control.runtime.configuration import planned_release, predicted_landing
+from dual_arm_control.runtime.controller_step import DS_COMMAND_LAG_KEY
 from dual_arm_control.runtime.signals import ArmCommandSample
 from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
 from dual_arm_control.scenario import load_scenario, scenario_path
@@ -516,6 +517,30 @@ def test_a_joint_state_missing_a_joint_is_refused_and_counted(realtime_controlle
     assert reports[-1].status[0].level == DiagnosticStatus.WARN
 
 
+def test_the_realtime_controller_reports_the_mean_lag_of_its_ds_commands(realtime_controller):
+    """
+    Tick 0's command is used on cycles 0-4 and, tick 6's not there yet, on cycle 6 (6 ms old).
+
+    The first report went out on cycle 0 (lag 0); the next, a diagnostics period later, gives
+    the mean lag of cycles 2, 4 and 6: 2 ms (its own cycle holds: the command is stale by then).
+    """
+    controller, node = realtime_controller, realtime_controller.node
+    reports = controller.received['/diagnostics']
+    q, dq, _, _ = controller_inputs(6)
+    controller.send('/left/ds_command', ds_command(0, np.zeros(3), np.zeros(3), np.eye(3)))
+    assert controller.spin_until(lambda: node.step.counters['ds_commands_received'] == 1)
+    for cycle_ms in (0, 2, 4, 6):
+        answer_to(controller, joint_state(cycle_ms * 1_000_000, q, dq))
+    period_ns = seconds_to_ns(node.get_parameter('diagnostics_period').value)
+    assert period_ns > 6_000_000
+    answer_to(controller, joint_state(6_000_000 + period_ns - period_ns % 10_000_000, q, dq))
+    assert controller.spin_until(lambda: len(reports) == 2)
+    first, last = ({pair.key: pair.value for pair in report.status[0].values}
+                   for report in reports)
+    assert float(first[DS_COMMAND_LAG_KEY]) == 0.0
+    assert float(last[DS_COMMAND_LAG_KEY]) == pytest.approx(2.0)
+
+
 @pytest.mark.parametrize('lockstep', [True, False], ids=['lockstep', 'realtime'])
 def test_sensor_subscriptions_are_best_effort_and_commands_keep_one(harness_factory, lockstep):
     """
@@ -718,6 +743,49 @@ def test_with_a_command_key_only_signed_commands_are_a_sign_of_life(harness_fact
     assert harness.spin_until(lambda: watch.silence_ns('right', 0) == 0)
     harness.spin_quietly()
     assert watch.silence_ns('left', 0) is None
+
+
+def controller_report(name, lag_ms):
+    """Return a controller's /diagnostics message carrying its mean DS command lag [ms]."""
+    return DiagnosticArray(status=[DiagnosticStatus(
+        name=name, values=[KeyValue(key='cycles', value='100'),
+                           KeyValue(key=DS_COMMAND_LAG_KEY, value=lag_ms)])])
+
+
+@pytest.mark.parametrize('lockstep', [True, False], ids=['lockstep', 'realtime'])
+def test_in_realtime_the_release_leads_by_the_lag_the_controllers_report(harness_factory,
+                                                                         lockstep):
+    """
+    Realtime: the mean of the controllers' reports, a bad one refused; lockstep: none.
+
+    A realtime cycle runs on the left joint state once every input came (depth 1, best effort:
+    each cycle is taken in before the next is sent), so the second cycle is the first tick.
+    """
+    harness = harness_factory(lambda context: DsMotionGenerator(
+        context=context, parameter_overrides=[
+            Parameter('scenario', value=str(scenario_path('paper_toss'))),
+            Parameter('lockstep', value=lockstep)]))
+    subscribed = [sub.topic_name for sub in harness.node.subscriptions]
+    assert (contract.DIAGNOSTICS.name in subscribed) is not lockstep
+    if lockstep:
+        return
+    for arm in contract.ARMS:
+        harness.publisher(contract.JOINT_STATES, arm)
+        harness.publisher(contract.FT_WRENCH, arm)
+    harness.publisher(contract.OBJECT_STATE)
+    harness.publisher(contract.DIAGNOSTICS)
+    harness.connect()
+    step = harness.node.step
+    for name, lag_ms in (('left/passive_controller', '4.0'),
+                         ('right/passive_controller', '6.0'),
+                         ('right/passive_controller', 'nan')):
+        harness.send(contract.DIAGNOSTICS.name, controller_report(name, lag_ms))
+    assert harness.spin_until(lambda: step.refusals.counts.get('diagnostics') == 1)
+    for t_ns in (0, FRI_PERIOD_NS):
+        feed_cycle(harness, t_ns)
+        harness.spin_quietly()
+    assert step.last_tick is not None
+    assert step.command_latency == pytest.approx(0.005)
 
 
 def feed_cycle(harness, t_ns):

@@ -1,5 +1,7 @@
 """Task phase machine on synthetic input trajectories sampled at 200 Hz and 500 Hz."""
 
+from dataclasses import replace
+
 from dual_arm_control.core.contact import ContactGeometry, ContactState
 from dual_arm_control.core.exceptions import ConfigError, InputError
 from dual_arm_control.core.phases import (
@@ -189,6 +191,30 @@ def test_release_leads_the_plane_by_the_pads_opening_time(lead, dt):
     assert 0.9 - lead - 1e-9 <= release_time < 0.9 - lead + dt + 1e-9
 
 
+class LateCommands(Scenario):
+    """The toss scenario whose commands act command_latency [s] after each update."""
+
+    def __init__(self, command_latency, **kwargs):
+        super().__init__(**kwargs)
+        self.command_latency = command_latency
+
+    def inputs(self, t, episode_start=0.0):
+        return replace(super().inputs(t, episode_start), command_latency=self.command_latency)
+
+
+@pytest.mark.parametrize('dt', RATES_DT)
+@pytest.mark.parametrize('latency', [0.0, 0.002, 0.008, 0.015])
+def test_release_leads_the_plane_by_the_command_latency_too(latency, dt):
+    """A release command that acts latency late is decided lead + latency before the plane."""
+    machine = PhaseMachine(PhaseConfig())
+    record = run(machine, LateCommands(latency), dt, 1.5)
+    release_time, release = [(t, tr) for t, tr in transitions(record)
+                             if tr.target is Phase.RELEASE][0]
+    expected = 0.9 - LEAD - latency
+    assert expected - 1e-9 <= release_time < expected + dt + 1e-9
+    assert ('ms early' in release.reason) == (latency > 0.0), release.reason
+
+
 def noisy_toss_state(noise, speed):
     """Return a toss object_state at speed [m/s] whose positions carry noise[tick] (5 ms)."""
     def state(t):
@@ -351,6 +377,9 @@ def test_invalid_inputs_rejected():
         PhaseInputs(**{**inputs.__dict__, 'p_world_object': [0.0, np.nan, 0.0]})
     with pytest.raises(InputError):
         PhaseInputs(**{**inputs.__dict__, 'contact_left': True})
+    for latency in (-0.001, np.nan, np.inf):
+        with pytest.raises(InputError, match='command_latency'):
+            replace(inputs, command_latency=latency)
     with pytest.raises(ConfigError):
         PhaseConfig(release_tolerance=0.0)
     with pytest.raises(ConfigError):

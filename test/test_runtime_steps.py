@@ -294,6 +294,8 @@ def run_ticks(controller, arrivals):
 def test_inputs_of_the_newest_tick_are_never_behind(controller):
     """As in lockstep: each tick's command and wrench arrive before its cycle (ticks 0, 6, 10)."""
     assert set(run_ticks(controller, {0: [0], 6: [6], 10: [10]}).values()) == {0}
+    assert controller.take_ds_command_lag() == 0.0
+    assert controller.take_ds_command_lag() is None, 'no cycle since the last report'
 
 
 def test_inputs_a_cycle_late_are_counted_behind_with_their_lag(controller):
@@ -301,3 +303,5 @@ def test_inputs_a_cycle_late_are_counted_behind_with_their_lag(controller):
     assert run_ticks(controller, {0: [0], 8: [6]}) == {
         'ds_command_behind': 2, 'ds_command_lag_max_ms': 6,
         'contact_wrench_behind': 2, 'contact_wrench_lag_max_ms': 6}
+    lags_ms = [0, 0, 0, 6, 0, 4]
+    assert controller.take_ds_command_lag() == pytest.approx(sum(lags_ms) / 6 * 1e-3)

@@ -57,10 +57,9 @@ class DualArmMotionGenerator:
                                                    config.toss.speed_correction_limit)
         self._held_object = HeldObjectEstimate()
         self._resting_object = RestingObjectFilter()
-        self._release_object_velocity = self._toss_velocity = np.zeros(3)
+        self._release_object_velocity = self._toss_velocity = self._belt_velocity = np.zeros(3)
         self._grasp_offset, self._grasp_roll = np.zeros(3), 0.0
         self._elbow_reaches = self._reach_tools = None
-        self._belt_velocity = np.zeros(3)
         self._grasped_rotation = self._pick_height = self._halt = None
         self.reconfigure(config)
 
@@ -114,11 +113,13 @@ class DualArmMotionGenerator:
         self._standby_positions = np.asarray(config.standby_positions, dtype=float)
         self._standby_rotations = np.asarray(config.standby_rotations, dtype=float)
 
-    def step(self, arms, obj, dt, start_episode=False, go_home=False, reset=False):
+    def step(self, arms, obj, dt, start_episode=False, go_home=False, reset=False,
+             command_latency=0.0):
         """
         Advance one tick of dt seconds and return the MotionOutput.
 
-        arms: {arm: ArmMeasurement}; obj: ObjectMeasurement (the tracker's estimate).
+        arms: {arm: ArmMeasurement}; obj: ObjectMeasurement (the tracker's estimate);
+        command_latency: s from the tick to its command reaching the arms (PhaseInputs).
         """
         config = self._config
         p_tools = np.array([finite_array('p_world_tool', arms[arm].p_world_tool, (3,))
@@ -164,7 +165,8 @@ class DualArmMotionGenerator:
             p_world_lift=np.asarray(config.lift.position, dtype=float),
             p_world_standby_left=self._standby_positions[0],
             p_world_standby_right=self._standby_positions[1],
-            start_episode=start_episode, go_home=go_home, reset=reset), dt)
+            start_episode=start_episode, go_home=go_home, reset=reset,
+            command_latency=command_latency), dt)
         phase = phase_output.phase
         if phase_output.transition is not None and phase is Phase.REACH:
             self._reach_speed.reset(0.0)
@@ -213,9 +215,9 @@ class DualArmMotionGenerator:
         pad pressed into its face at halt_squeeze_speed; otherwise the tools hold their poses.
         """
         halt, phase, first = self._halt, self._phase_machine.phase, not self._halt
+        zero = np.zeros(3)
         if first:
             halt.update(tools=p_tools.copy(), rotations=tuple(R.copy() for R in R_tools))
-        zero = np.zeros(3)
         if phase in (Phase.CONTACT, Phase.MANIPULATE):
             commands = self._carry(p_tools, R_tools, frames, zero, zero)
             commands = {arm: replace(commands[arm], v_world=commands[arm].v_world
@@ -224,9 +226,8 @@ class DualArmMotionGenerator:
         else:
             commands = self._standby(p_tools, R_tools, halt['tools'], halt['rotations'])
         return MotionOutput(
-            phase=PhaseMachineOutput(phase, self._phase_machine.task,
-                                     self._phase_machine.time_in_phase,
-                                     ('halted',) if first else ()),
+            phase=PhaseMachineOutput(phase, self._phase_machine.task, self._phase_machine
+                                     .time_in_phase, ('halted',) if first else ()),
             commands=commands, object_velocity=zero, object_angular_velocity=zero,
             contacts=contacts, pad_forces=pad_forces, grasp_frames=frames,
             impact_directions={arm: frames[arm].normal for arm in ARMS},
@@ -338,8 +339,7 @@ class DualArmMotionGenerator:
     def _follow_belt(self, commands):
         """Return the reach commands moving with the box on the belt (feed-forward)."""
         velocity = belt_feed_forward([commands[arm].v_world for arm in ARMS],
-                                     self._belt_velocity,
-                                     self._config.moving_grab.tracking_gain)
+                                     self._belt_velocity, self._config.moving_grab.tracking_gain)
         velocity = saturated_velocity(velocity, self._config.max_linear_speed)
         return {arm: replace(commands[arm], v_world=velocity[index])
                 for index, arm in enumerate(ARMS)}

@@ -133,6 +133,8 @@ class PhaseInputs:
         p_world_lift: (3,) m, lift position (PICK_AND_LIFT).
         p_world_standby_left, p_world_standby_right: (3,) m, standby tool positions.
         start_episode, go_home, reset: commands, acting on their rising edge.
+        command_latency: s (>= 0), how long after this update its command reaches the arms
+            (realtime: the graph's transport); the toss release leads the plane by it too.
 
     """
 
@@ -151,8 +153,11 @@ class PhaseInputs:
     start_episode: bool = False
     go_home: bool = False
     reset: bool = False
+    command_latency: float = 0.0
 
     def __post_init__(self):
+        if not (np.isfinite(self.command_latency) and self.command_latency >= 0.0):
+            raise InputError(f'command_latency = {self.command_latency} s must be finite, >= 0')
         rows = finite_rows(_VECTOR_FIELDS, [getattr(self, name) for name in _VECTOR_FIELDS], 3)
         for name, row in zip(_VECTOR_FIELDS, rows):
             object.__setattr__(self, name, row)
@@ -194,9 +199,7 @@ class PhaseMachineOutput:
 
 def _condition_duration(active, duration, dt):
     """Return how long a condition has held (s): None if inactive, 0 when first seen."""
-    if not active:
-        return None
-    return 0.0 if duration is None else duration + dt
+    return None if not active else 0.0 if duration is None else duration + dt
 
 
 class PhaseMachine:
@@ -303,14 +306,10 @@ class PhaseMachine:
         return None
 
     def _phase_transition(self, inputs, dt, events):
-        handler = {
-            Phase.STANDBY: None,
-            Phase.REACH: self._from_reach,
-            Phase.CONTACT: self._from_contact,
-            Phase.MANIPULATE: self._from_manipulate,
-            Phase.RELEASE: self._from_release,
-            Phase.RETRACT: self._from_retract,
-        }[self._phase]
+        handler = {Phase.STANDBY: None, Phase.REACH: self._from_reach,
+                   Phase.CONTACT: self._from_contact, Phase.MANIPULATE: self._from_manipulate,
+                   Phase.RELEASE: self._from_release, Phase.RETRACT: self._from_retract,
+                   }[self._phase]
         return None if handler is None else handler(inputs, dt, events)
 
     def _from_reach(self, inputs, dt, events):
@@ -377,7 +376,7 @@ class PhaseMachine:
                                               inputs.p_world_place, self._config, dt)
         return self._toss_release.reason(inputs.p_world_object, inputs.v_world_object,
                                          inputs.p_world_release, inputs.v_world_release,
-                                         self._config)
+                                         self._config, inputs.command_latency)
 
     def _from_release(self, inputs, dt, events):
         if not (inputs.contact_left.in_contact or inputs.contact_right.in_contact):

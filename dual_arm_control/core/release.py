@@ -25,13 +25,15 @@ class TossRelease:
         """Forget the previous update (a new grasp)."""
         self._previous_along = None
 
-    def reason(self, p_world_object, v_world_object, p_world_release, v_world_release, config):
+    def reason(self, p_world_object, v_world_object, p_world_release, v_world_release, config,
+               command_latency=0.0):
         """
         Return why the box must be released now, or None.
 
         config: PhaseConfig (release_tolerance, release_plane_radius, release_lead_time). The
         box's signed distance along the release velocity from the release plane, advanced by
-        its own velocity times release_lead_time (the pads take that long to come off), turning
+        its own velocity times release_lead_time (the pads take that long to come off) plus
+        command_latency [s] (the release command takes that long to reach the arms), turning
         non-negative within release_plane_radius of the release path releases it; so does the
         box moving away from the release point (its velocity along the offset from the point
         positive) inside release_tolerance.
@@ -43,12 +45,15 @@ class TossRelease:
             return None
         direction = v_world_release / release_speed
         offset_along = float(p_world_offset @ direction)
-        along = offset_along + config.release_lead_time * float(v_world_object @ direction)
+        lead_time = config.release_lead_time + command_latency
+        along = offset_along + lead_time * float(v_world_object @ direction)
         lateral = float(np.linalg.norm(p_world_offset - offset_along * direction))
         previous_along, self._previous_along = self._previous_along, along
         if (previous_along is not None and previous_along < 0.0 <= along
                 and lateral <= config.release_plane_radius):
-            return f'object reaches the release plane {lateral:.3f} m off the release path'
+            early = f', {command_latency * 1e3:.1f} ms early' if command_latency > 0.0 else ''
+            return (f'object reaches the release plane {lateral:.3f} m off the release path'
+                    f'{early}')
         if distance <= config.release_tolerance and float(v_world_object @ p_world_offset) > 0.0:
             return f'object passed {distance:.3f} m from the release position'
         return None

@@ -6,7 +6,9 @@ to the runtime MotionGeneratorStep; on DS ticks (200 Hz on the cycle stamps) it 
 stamped with the tick, per-arm DS commands, the desired object twist, the phase and (every
 MARKER_PERIOD) markers. With `lockstep` a tick waits for both arms' joint states and F/T readings
 and the tracker's estimate, all stamped with it (other cycles only advance the schedule); in
-realtime each left joint state triggers a cycle with the newest of the others (take-latest).
+realtime each left joint state triggers a cycle with the newest of the others (take-latest), and
+with release_latency_lead the toss release leads by how late the commands act on the arms: the
+DS command lag the controllers report on /diagnostics (runtime.command_latency).
 Parameters: the whole MotionGeneratorConfig tree (live), plus the scenario, auto-start time,
 landing target, controller timeout and rates. The stamps of both controllers' torque commands
 tell it they are alive; one silent for controller_timeout halts the task (MotionGeneratorStep).
@@ -32,8 +34,10 @@ from dual_arm_control.nodes.messages import (arm_command_message, fill_twist, jo
                                              stamp_ns, time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import ConfigParameters, NodeParameters
+from dual_arm_control.runtime.command_latency import CommandLatency
 from dual_arm_control.runtime.configuration import (motion_config_for_cell,
                                                     motion_config_for_scenario, planned_landing)
+from dual_arm_control.runtime.controller_step import DS_COMMAND_LAG_KEY
 from dual_arm_control.runtime.inputs import ArrivalBarrier
 from dual_arm_control.runtime.motion_step import MotionGeneratorStep
 from dual_arm_control.runtime.node_settings import node_table
@@ -102,6 +106,8 @@ class DsMotionGenerator(Node):
                 lambda t: tick_inputs if self.step.is_new_tick(t) else CYCLE_TRIGGER)
         else:
             self._barrier = ArrivalBarrier(lambda t: CYCLE_TRIGGER)
+        self._latency = (CommandLatency() if settings['release_latency_lead'] and not lockstep
+                         else None)
         refuse = self.step.refusals.refuse
         self._inputs = {name: LatestMessage(object_state_of, name, refuse)
                         for name in ('object', 'container')}
@@ -142,6 +148,9 @@ class DsMotionGenerator(Node):
                                      contract.CONTAINER_STATE.name,
                                      lambda msg: self._on_input('container', msg),
                                      contract.CONTAINER_STATE.subscription_qos(lockstep))
+        if self._latency is not None:
+            self.create_subscription(contract.DIAGNOSTICS.msg_type, contract.DIAGNOSTICS.name,
+                                     self._on_diagnostics, contract.DIAGNOSTICS.qos)
         self.create_subscription(contract.LANDING_TARGET.msg_type, contract.LANDING_TARGET.name,
                                  self._on_landing_target, contract.LANDING_TARGET.qos)
         for service, command in ((contract.START_EPISODE_SERVICE, 'start'),
@@ -203,6 +212,20 @@ class DsMotionGenerator(Node):
                                                msg.header.frame_id):
             self.step.command_heard(arm, stamp)
 
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            for entry in status.values:
+                if entry.key != DS_COMMAND_LAG_KEY:
+                    continue
+                try:
+                    lag = float(entry.value) * 1e-3
+                except ValueError:
+                    lag = None
+                if not self._latency.reported(status.name, lag):
+                    self.step.refusals.refuse(
+                        'diagnostics', f'{status.name}: {DS_COMMAND_LAG_KEY} = {entry.value!r} '
+                        'refused: a finite lag >= 0 expected')
+
     def _on_command(self, command, response):
         self.step.request(command)
         response.success = True
@@ -219,6 +242,8 @@ class DsMotionGenerator(Node):
             ft = {arm: self._inputs[f'{arm}_ft'].value() for arm in ARMS}
             if None in joints.values() or None in ft.values():
                 continue
+            if self._latency is not None and self.step.is_new_tick(t_ns):
+                self.step.command_latency = self._latency.seconds
             tick = self.step.cycle(t_ns, joints, ft, self._inputs['object'].value(),
                                    self._inputs['container'].value())
             if tick is not None:
@@ -248,6 +273,8 @@ class DsMotionGenerator(Node):
         values = dict(refusals.counts, phase=self.step.phase.value, refused_total=refusals.total,
                       time_resets=self.step.time_resets, dropped_stamps=self._barrier.dropped,
                       lost_controllers=','.join(self.step.controllers.lost_arms))
+        if self._latency is not None:
+            values['command_latency_ms'] = round(self._latency.seconds * 1e3, 3)
         return level, f'phase {self.step.phase.value}', values
 
 

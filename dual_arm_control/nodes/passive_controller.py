@@ -24,7 +24,7 @@ from dual_arm_control.nodes.messages import (arm_command_of, joint_state_of, sta
                                              time_msg, wrench_of)
 from dual_arm_control.nodes.process import create_topic_publisher, run_node
 from dual_arm_control.parameters import ConfigParameters, NodeParameters
-from dual_arm_control.runtime.controller_step import ControllerStep
+from dual_arm_control.runtime.controller_step import ControllerStep, DS_COMMAND_LAG_KEY
 from dual_arm_control.runtime.inputs import ArrivalBarrier
 from dual_arm_control.runtime.node_settings import controller_parameter_problem, node_table
 from rclpy.node import Node
@@ -130,6 +130,9 @@ class PassiveControllerNode(Node):
 
     def _report(self):
         values = dict(self.step.counters, dropped_stamps=self._barrier.dropped)
+        lag = self.step.take_ds_command_lag()
+        if lag is not None:
+            values[DS_COMMAND_LAG_KEY] = round(lag * 1e3, 3)
         values.update({f'refused_{reason}': n for reason, n in self.step.refusals.counts.items()})
         if self.step.refusals.total or values['holds_by_controller']:
             return DiagnosticStatus.WARN, 'inputs refused or control law held', values

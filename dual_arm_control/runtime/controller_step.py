@@ -13,7 +13,9 @@ tick arrived (needs_tick_inputs).
 How far the planners are behind (zero in lockstep): the cycles answered with a DS command or a
 contact wrench older than the newest DS tick due (`*_behind`), and the longest such lag, from
 the command's tick to the newest tick (`*_lag_max_ms`). In realtime these lags cost the toss
-release velocity (docs/performance.md).
+release velocity (docs/performance.md); take_ds_command_lag() gives the DS command's mean lag,
+which the controller node reports on /diagnostics (DS_COMMAND_LAG_KEY) and the motion generator
+releases the box that much earlier for (runtime.command_latency).
 
 With a gravity-compensated torque interface (KUKA FRI torque mode: the robot adds its own
 gravity compensation) the command is the joint torque minus the model's g(q), so gravity is not
@@ -28,6 +30,8 @@ import numpy as np
 
 LAG_COUNTERS = ('ds_command_behind', 'contact_wrench_behind', 'ds_command_lag_max_ms',
                 'contact_wrench_lag_max_ms')
+DS_COMMAND_LAG_KEY = 'ds_command_lag_mean_ms'
+"""The /diagnostics key of a controller's mean DS command lag [ms] since its last report."""
 COUNTERS = ('cycles', 'ds_commands_received', 'contact_wrenches_received', 'repeated_answers',
             'holds_no_command', 'holds_stale_command', 'holds_by_controller', 'saturated',
             'no_contact_wrench', 'stale_contact_wrench', 'schedule_restarts') + LAG_COUNTERS
@@ -60,6 +64,7 @@ class ControllerStep:
         self._last_contact_ns = None
         self.refusals = RefusalCounter(on_refusal)
         self.counters = dict.fromkeys(COUNTERS, 0)
+        self._ds_command_lag_ns = self._ds_command_lag_cycles = 0
 
     @property
     def controller(self):
@@ -125,6 +130,8 @@ class ControllerStep:
             self.counters['holds_stale_command'] += 1
             return self.hold(q, dq)
         self._count_lag('ds_command', command)
+        self._ds_command_lag_ns += max(self._schedule.last_tick_ns - command.stamp_ns, 0)
+        self._ds_command_lag_cycles += 1
         self._count_lag('contact_wrench', self._wrench)
         contact_wrench = None
         if self._wrench is None:
@@ -142,6 +149,17 @@ class ControllerStep:
         self.counters['holds_by_controller'] += int(result.held)
         self.counters['saturated'] += int(result.saturated)
         return result.torque
+
+    def take_ds_command_lag(self):
+        """
+        Return the mean lag [s] of the DS commands used since the last call, or None if none.
+
+        A cycle's lag runs from the tick of the command it used to the newest tick due: 0 in
+        lockstep, where each tick's cycle waits for that tick's command.
+        """
+        cycles, self._ds_command_lag_cycles = self._ds_command_lag_cycles, 0
+        lag_ns, self._ds_command_lag_ns = self._ds_command_lag_ns, 0
+        return lag_ns / cycles / 1e9 if cycles else None
 
     def _count_lag(self, name, sample):
         """Count an input (DS command or contact wrench; None: none yet) older than the tick."""

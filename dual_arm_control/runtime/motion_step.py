@@ -78,7 +78,8 @@ class MotionGeneratorStep:
     config: MotionGeneratorConfig; models: {arm: ArmModel} (tool and sensor poses from joint
     positions); ds_period [s]; auto_start_ns: sim time of the automatic start (0 = only on
     request); controller_timeout [s]: silence after which an arm's controller is lost (0 = no
-    watch).
+    watch). command_latency [s]: how late the next tick's command acts on the arms (0 in
+    lockstep; realtime: runtime.command_latency), which the toss release leads by.
     """
 
     def __init__(self, config, models, ds_period, auto_start_ns=0, on_refusal=None,
@@ -90,9 +91,8 @@ class MotionGeneratorStep:
         self._ds_period = ds_period
         self._auto_start_ns = int(auto_start_ns)
         self.refusals = RefusalCounter(on_refusal)
-        self.time_resets = 0
-        self._pending_config = None
-        self._landing_target = None
+        self.time_resets, self.command_latency = 0, 0.0
+        self._pending_config = self._landing_target = None
         self._start_over(config)
 
     def _start_over(self, config):
@@ -233,7 +233,8 @@ class MotionGeneratorStep:
             output = self._generator.step(arms, object_measurement_at(estimate, stamp_ns, arms),
                                           dt, start_episode=start,
                                           go_home=self._requests['go_home'],
-                                          reset=self._requests['reset'])
+                                          reset=self._requests['reset'],
+                                          command_latency=self.command_latency)
         except InputError as error:
             self.refusals.refuse('tick', f'tick at {stamp_ns} ns: {error}')
             self._last_tick = _stop_tick(stamp_ns, arms, self._generator)

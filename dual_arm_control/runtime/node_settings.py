@@ -143,6 +143,11 @@ NODE_TABLES = {
                 'from the controller of an arm (heard before) after which it counts as lost: the '
                 'task stops where it is, a held box stays squeezed against the arm the robot '
                 'holds; 0 = never', 's', 0.0, 1.0, read_only=True),
+        Setting('release_latency_lead', True, 'realtime: the toss releases earlier by the '
+                'mean lag of the DS commands the controllers run on, as they report it on '
+                '/diagnostics (runtime.command_latency; 3.5-4.5 ms on 2 cores), on top of the '
+                'phases release_lead_time; false: release_lead_time only. Lockstep has no lag',
+                read_only=True),
         DS_PERIOD_SETTING, LOCKSTEP, DIAGNOSTICS_PERIOD), MotionGeneratorConfig),
     'wrench_qp': NodeTable((
         SCENARIO,
