@@ -225,6 +225,7 @@ class DsMotionGenerator(Node):
                     self.step.refusals.refuse(
                         'diagnostics', f'{status.name}: {DS_COMMAND_LAG_KEY} = {entry.value!r} '
                         'refused: a finite lag >= 0 expected')
+                self.step.command_latency = self._latency.seconds
 
     def _on_command(self, command, response):
         self.step.request(command)
@@ -242,8 +243,6 @@ class DsMotionGenerator(Node):
             ft = {arm: self._inputs[f'{arm}_ft'].value() for arm in ARMS}
             if None in joints.values() or None in ft.values():
                 continue
-            if self._latency is not None and self.step.is_new_tick(t_ns):
-                self.step.command_latency = self._latency.seconds
             tick = self.step.cycle(t_ns, joints, ft, self._inputs['object'].value(),
                                    self._inputs['container'].value())
             if tick is not None:

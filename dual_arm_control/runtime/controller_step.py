@@ -25,7 +25,7 @@ compensated twice; the torque limits still bound the whole joint torque.
 from dual_arm_control.core.passive_control import hold_torque, PassiveController
 from dual_arm_control.runtime.inputs import RefusalCounter
 from dual_arm_control.runtime.signals import TorqueSample
-from dual_arm_control.runtime.timing import seconds_to_ns, TickSchedule
+from dual_arm_control.runtime.timing import NANOSECONDS_PER_SECOND, seconds_to_ns, TickSchedule
 import numpy as np
 
 LAG_COUNTERS = ('ds_command_behind', 'contact_wrench_behind', 'ds_command_lag_max_ms',
@@ -129,8 +129,7 @@ class ControllerStep:
         if abs(stamp_ns - command.stamp_ns) > self.command_timeout_ns:
             self.counters['holds_stale_command'] += 1
             return self.hold(q, dq)
-        self._count_lag('ds_command', command)
-        self._ds_command_lag_ns += max(self._schedule.last_tick_ns - command.stamp_ns, 0)
+        self._ds_command_lag_ns += self._count_lag('ds_command', command)
         self._ds_command_lag_cycles += 1
         self._count_lag('contact_wrench', self._wrench)
         contact_wrench = None
@@ -159,17 +158,22 @@ class ControllerStep:
         """
         cycles, self._ds_command_lag_cycles = self._ds_command_lag_cycles, 0
         lag_ns, self._ds_command_lag_ns = self._ds_command_lag_ns, 0
-        return lag_ns / cycles / 1e9 if cycles else None
+        return lag_ns / cycles / NANOSECONDS_PER_SECOND if cycles else None
 
     def _count_lag(self, name, sample):
-        """Count an input (DS command or contact wrench; None: none yet) older than the tick."""
+        """
+        Count an input (DS command or contact wrench; None: none yet) older than the tick.
+
+        Return its lag [ns] behind the newest tick due (0 if on time or none).
+        """
         if sample is None:
-            return
+            return 0
         lag_ns = self._schedule.last_tick_ns - sample.stamp_ns
         if lag_ns > 0:
             self.counters[f'{name}_behind'] += 1
             self.counters[f'{name}_lag_max_ms'] = max(self.counters[f'{name}_lag_max_ms'],
                                                       lag_ns // 1_000_000)
+        return max(lag_ns, 0)
 
     def _end_episode_without_contact(self, stamp_ns, contact_wrench):
         """Start a new controller episode once no contact wrench came for free_gains_after."""
