@@ -15,14 +15,17 @@ frame would turn the offset with that pad as it rocks on an edge of its face. Th
 starts where the grasp plan puts the centre (the tracker lags after the impact: 7 mm in one
 trial) and follows the tracker's estimate slowly (time constant; a slip of the box in the
 pads shows up within it). The velocity is that point's as the pads carry it: differenced
-over the tick with the offset held (its slow correction is no motion of the box) and carried
-half a tick forward on the last two differences (a difference is the mean velocity over the
-tick, half a tick old: 0.025 m/s at the toss's 10 m/s^2).
+between the joint samples (core.sample_time; in realtime, differenced over the tick instead, the
+speed jumped 20-40 % from tick to tick and the toss's speed loop threw 10-17 % fast on it) with
+the offset held (its slow correction is no motion of the box), and carried half a span forward
+on the last two differences (a difference is the mean velocity over its span, half a span old:
+0.025 m/s at the toss's 10 m/s^2).
 """
 
 import math
 
 from dual_arm_control.core.geometry import slerp_rotation
+from dual_arm_control.core.sample_time import sample_span
 import numpy as np
 
 
@@ -38,8 +41,9 @@ class HeldObjectEstimate:
         self._offset = None
         self._midpoint = None
         self._R_world_grip = None
-        self._velocity = None
+        self._velocity = self._held_velocity = None
         self._R_right_left = None
+        self._sample_age = 0.0
 
     def grip_rotation(self, R_world_left, R_world_right):
         """
@@ -57,33 +61,43 @@ class HeldObjectEstimate:
         return slerp_rotation(R_world_left, R_world_right @ self._R_right_left, 0.5)
 
     def update(self, p_world_midpoint, R_world_grip, p_world_estimate, v_world_estimate, dt,
-               time_constant, planned_offset=None):
+               time_constant, planned_offset=None, sample_age=0.0):
         """
         Return the held box's (p (3,) [m], v (3,) [m/s]) for one tick of dt [s].
 
-        p_world_midpoint: the pads' midpoint; R_world_grip (3, 3): the grip's rotation;
-        p/v_world_estimate: the tracker's estimate, which the offset follows with
-        time_constant [s] (> 0); planned_offset (3,) [m]: where the grasp
-        plan puts the box's centre from the pads' midpoint, world frame (default: the
-        tracker's). The first tick of a hold returns the centre there with the tracker's
-        velocity.
+        p_world_midpoint: the pads' midpoint; R_world_grip (3, 3): the grip's rotation, both
+        from joint states sampled sample_age [s] before the tick (the position is carried to the
+        tick; a sample seen at the tick before gives no new difference); p/v_world_estimate: the
+        tracker's estimate, which the offset follows with time_constant [s] (> 0);
+        planned_offset (3,) [m]: where the grasp plan puts the box's centre from the pads'
+        midpoint, world frame (default: the tracker's). The first tick of a hold returns the
+        centre there with the tracker's velocity.
         """
         midpoint = np.asarray(p_world_midpoint, dtype=float)
         R_world_grip = np.asarray(R_world_grip, dtype=float)
         p_world_estimate = np.asarray(p_world_estimate, dtype=float)
-        measured_offset = R_world_grip.T @ (p_world_estimate - midpoint)
+        span = sample_span(dt, self._sample_age, sample_age)
+        self._sample_age = sample_age if span is not None else self._sample_age + dt
         if self._offset is None or dt <= 0.0:
-            self._offset = (measured_offset if planned_offset is None
-                            else R_world_grip.T @ np.asarray(planned_offset, dtype=float))
+            self._sample_age = sample_age
+            velocity = np.asarray(v_world_estimate, dtype=float)
+            midpoint_at_tick = midpoint + sample_age * velocity
+            self._offset = R_world_grip.T @ (
+                p_world_estimate - midpoint_at_tick if planned_offset is None
+                else np.asarray(planned_offset, dtype=float))
             self._midpoint, self._R_world_grip = midpoint, R_world_grip
-            return (midpoint + R_world_grip @ self._offset,
-                    np.asarray(v_world_estimate, dtype=float))
-        mean_velocity = (midpoint - self._midpoint + (R_world_grip - self._R_world_grip)
-                         @ self._offset) / dt
-        velocity = mean_velocity if self._velocity is None else (
-            1.5 * mean_velocity - 0.5 * self._velocity)
-        self._velocity = mean_velocity
+            return midpoint_at_tick + R_world_grip @ self._offset, velocity
+        if span is not None:
+            mean_velocity = (midpoint - self._midpoint + (R_world_grip - self._R_world_grip)
+                             @ self._offset) / span
+            self._held_velocity = mean_velocity if self._velocity is None else (
+                1.5 * mean_velocity - 0.5 * self._velocity)
+            self._velocity = mean_velocity
+            self._midpoint, self._R_world_grip = midpoint, R_world_grip
+        velocity = (np.asarray(v_world_estimate, dtype=float) if self._held_velocity is None
+                    else self._held_velocity)
+        midpoint_at_tick = midpoint + sample_age * velocity
         gain = -math.expm1(-dt / time_constant)
-        self._offset = self._offset + gain * (measured_offset - self._offset)
-        self._midpoint, self._R_world_grip = midpoint, R_world_grip
-        return midpoint + R_world_grip @ self._offset, velocity
+        self._offset = self._offset + gain * (
+            R_world_grip.T @ (p_world_estimate - midpoint_at_tick) - self._offset)
+        return midpoint_at_tick + R_world_grip @ self._offset, velocity

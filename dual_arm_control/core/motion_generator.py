@@ -35,8 +35,9 @@ from dual_arm_control.core.orientation import (
 from dual_arm_control.core.phases import (Phase, PhaseInputs, PhaseMachine, PhaseMachineOutput,
                                           Task)
 from dual_arm_control.core.place import place_rotation, place_velocity
-from dual_arm_control.core.release import clear_of_the_box
+from dual_arm_control.core.release import commands_clear_of_the_box
 from dual_arm_control.core.resting_object import RestingObjectFilter
+from dual_arm_control.core.sample_time import sample_span
 from dual_arm_control.core.speed_shaping import (
     arm_velocities_near_object, boosted_velocity, reach_speed, released_velocity,
     saturated_velocity, SpeedErrorIntegrator, SpeedFilter)
@@ -128,13 +129,15 @@ class DualArmMotionGenerator:
         p_object = finite_array('p_world_object', obj.p_world_object, (3,))
         v_object = finite_array('v_world_object', obj.v_world_object, (3,))
         R_object = finite_array('R_world_object', obj.R_world_object, (3, 3))
+        sample_ages = finite_array('sample_age', [arms[arm].sample_age for arm in ARMS], (2,))
         held = (self._phase_machine.phase is Phase.MANIPULATE and self._halt is None
                 and config.held_object_time_constant > 0.0)
         if held:
             p_object, v_object = self._held_object.update(
                 p_tools.mean(axis=0), self._held_object.grip_rotation(*R_tools), p_object,
-                v_object, dt,
-                config.held_object_time_constant, planned_offset=-R_object @ self._grasp_offset)
+                v_object, dt, config.held_object_time_constant,
+                planned_offset=-R_object @ self._grasp_offset,
+                sample_age=sample_ages.mean())
         else:
             self._held_object.reset()
         resting = (self._phase_machine.phase in (Phase.STANDBY, Phase.REACH)
@@ -182,7 +185,7 @@ class DualArmMotionGenerator:
             support_height_below(config, p_object), self._grasp_roll, elbow_reaches))
         if phase is Phase.REACH:
             faces = [face_rectangle(arm, p_object, R_object, config.object_size) for arm in ARMS]
-            commands = self._reach(p_tools, R_tools, frames, faces, directions, dt)
+            commands = self._reach(p_tools, R_tools, frames, faces, directions, dt, sample_ages)
             commands = yield_to_single_contact(commands, contacts, frames)
             if config.moving_grab.enabled:
                 commands = self._follow_belt(commands)
@@ -197,7 +200,9 @@ class DualArmMotionGenerator:
         else:
             commands = self._standby(p_tools, R_tools)
             if phase is Phase.RETRACT:
-                commands = self._clear_of_the_box(commands, p_tools, p_object, v_object)
+                commands = commands_clear_of_the_box(
+                    commands, p_tools, p_object, v_object, config.release_clearance,
+                    config.release_opening_speed, config.max_linear_speed)
         toss = config.task in TOSS_TASKS
         return MotionOutput(
             phase=phase_output, commands=commands, object_velocity=object_velocity,
@@ -302,8 +307,13 @@ class DualArmMotionGenerator:
             target = level_rotation(R_object)
         return object_angular_velocity(R_object, target, self._object_orientation_ds)
 
-    def _reach(self, p_tools, R_tools, frames, faces, directions, dt):
-        """Return the coordinated reach-with-impact commands (eqs. 1-6, Proposition 2)."""
+    def _reach(self, p_tools, R_tools, frames, faces, directions, dt, sample_ages):
+        """
+        Return the coordinated reach-with-impact commands (eqs. 1-6, Proposition 2).
+
+        The tools' measured velocities are differenced between their joint samples, sampled
+        sample_ages (2,) [s] before the tick (core.sample_time).
+        """
         config = self._config
         grasp_points = np.array([frames[arm].p_world_grasp for arm in ARMS])
         geometry = impact_geometry(grasp_points, np.array([directions[arm] for arm in ARMS]),
@@ -319,10 +329,11 @@ class DualArmMotionGenerator:
             normals = np.array([face.normal for face in faces])
             pad, schedule = config.arrival_synchroniser()
             gaps = first_touch_gaps(faces, p_tools, R_tools, *pad)
-            measured = (None if self._reach_tools is None or dt <= 0.0
-                        else (p_tools - self._reach_tools) / dt)
+            spans = None if self._reach_tools is None or dt <= 0.0 else sample_span(
+                dt, self._reach_tools[1], sample_ages)
+            measured = None if spans is None else (p_tools - self._reach_tools[0]) / spans[:, None]
             velocity = synchronised_arrival(velocity, gaps, normals, schedule, measured)
-        self._reach_tools = p_tools
+        self._reach_tools = p_tools, sample_ages
         velocity = saturated_velocity(velocity, config.max_linear_speed)
         eta = orientation_coupling(p_tools.mean(axis=0), grasp_points.mean(axis=0),
                                    config.orientation)
@@ -370,18 +381,6 @@ class DualArmMotionGenerator:
                     R_tools[index], frames[arm].R_world_grasp, self._config.orientation),
                     frames[arm].R_world_grasp, frames[arm].p_world_grasp)
                 for index, arm in enumerate(ARMS)}
-
-    def _clear_of_the_box(self, commands, p_tools, p_object, v_object):
-        """Return retract commands that keep each pad out of the flying box's way."""
-        config = self._config
-        cleared = {}
-        for index, arm in enumerate(ARMS):
-            velocity = clear_of_the_box(commands[arm].v_world, p_tools[index], p_object,
-                                        v_object, config.release_clearance,
-                                        config.release_opening_speed)
-            cleared[arm] = replace(commands[arm], v_world=saturated_velocity(
-                velocity, config.max_linear_speed))
-        return cleared
 
     def _standby(self, p_tools, R_tools, targets=None, rotations=None):
         """Return point-attractor commands toward each arm's standby pose (or the given ones)."""

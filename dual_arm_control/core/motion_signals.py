@@ -17,13 +17,22 @@ class ArmMeasurement:
 
     Fields: p_world_tool (3,) m and R_world_tool (3, 3), the tool frame; ft_wrench_sensor (6,)
     [N, N m], the raw Net F/T reading (wrench the tool applies to the sensor, sensor frame);
-    R_world_sensor (3, 3).
+    R_world_sensor (3, 3); sample_age [s], how long before the tick the joint state these come
+    from was sampled (0 in lockstep; in realtime the newest sample may be a cycle or two off).
     """
 
     p_world_tool: np.ndarray
     R_world_tool: np.ndarray
     ft_wrench_sensor: np.ndarray
     R_world_sensor: np.ndarray
+    sample_age: float = 0.0
+
+
+def arm_measurement(model, q, ft_wrench_sensor, sample_age=0.0):
+    """Return the ArmMeasurement of an arm at joints q (7,) [rad], posed by model (ArmModel)."""
+    (p_world_tool, R_world_tool), (_, R_world_sensor) = model.tool_and_sensor_poses(q)
+    return ArmMeasurement(p_world_tool, R_world_tool, ft_wrench_sensor, R_world_sensor,
+                          sample_age)
 
 
 @dataclass(frozen=True)

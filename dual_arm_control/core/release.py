@@ -11,6 +11,10 @@ box covers 4 mm per 5 ms tick, and mocap noise of 2 mm made the distance grow wh
 still approached, letting go 1-2 cm before the plane.
 """
 
+from dataclasses import replace
+
+from dual_arm_control.core.arms import ARMS
+from dual_arm_control.core.speed_shaping import saturated_velocity
 import numpy as np
 
 
@@ -124,3 +128,12 @@ def clear_of_the_box(v_world_tool, p_world_tool, p_world_object, v_world_object,
         return v_world_tool
     shortfall = closing + separation_speed - float(v_world_tool @ away)
     return v_world_tool + max(shortfall, 0.0) * away
+
+
+def commands_clear_of_the_box(commands, p_tools, p_world_object, v_world_object, clearance,
+                              separation_speed, max_speed):
+    """Return {arm: ArmCommand} with each pad out of the flying box's way, at most max_speed."""
+    return {arm: replace(commands[arm], v_world=saturated_velocity(clear_of_the_box(
+                commands[arm].v_world, p_tools[index], p_world_object, v_world_object, clearance,
+                separation_speed), max_speed))
+            for index, arm in enumerate(ARMS)}

@@ -38,7 +38,7 @@ from dual_arm_control.core.arms import ARMS
 from dual_arm_control.core.ballistics import UnreachableTargetError
 from dual_arm_control.core.exceptions import InputError
 from dual_arm_control.core.motion_generator import DualArmMotionGenerator
-from dual_arm_control.core.motion_signals import ArmCommand, ArmMeasurement
+from dual_arm_control.core.motion_signals import arm_measurement, ArmCommand
 from dual_arm_control.core.moving_grab import grab_wait_reason, predicted_box_position
 from dual_arm_control.core.phases import Phase, Task
 from dual_arm_control.core.place import pallet_floor, place_rotation
@@ -49,7 +49,8 @@ from dual_arm_control.runtime.conveyor_aim import container_aim
 from dual_arm_control.runtime.inputs import RefusalCounter
 from dual_arm_control.runtime.regrasp import staged_regrasp
 from dual_arm_control.runtime.signals import arm_command_from, PhaseSample, TwistSample
-from dual_arm_control.runtime.timing import estimate_at, object_measurement_at, TickSchedule
+from dual_arm_control.runtime.timing import (estimate_at, NANOSECONDS_PER_SECOND,
+                                             object_measurement_at, TickSchedule)
 import numpy as np
 
 COMMANDS = ('start', 'go_home', 'reset')
@@ -200,13 +201,9 @@ class MotionGeneratorStep:
         if self._pending_config is not None:
             self._generator.reconfigure(self._pending_config)
             self._pending_config = None
-        arms = {}
-        for arm in ARMS:
-            q = joints[arm].position
-            (p_world_tool, R_world_tool), (_, R_world_sensor) = (
-                self._models[arm].tool_and_sensor_poses(q))
-            arms[arm] = ArmMeasurement(p_world_tool, R_world_tool, ft_wrenches[arm].wrench,
-                                       R_world_sensor)
+        arms = {arm: arm_measurement(
+            self._models[arm], joints[arm].position, ft_wrenches[arm].wrench,
+            (stamp_ns - joints[arm].stamp_ns) / NANOSECONDS_PER_SECOND) for arm in ARMS}
         has_object = estimate is not None and estimate.valid
         aim_reason = self._aim_at_container(stamp_ns, arms, estimate, container)
         requested = self._requests['start']
