@@ -41,7 +41,7 @@ class HeldObjectEstimate:
         self._offset = None
         self._midpoint = None
         self._R_world_grip = None
-        self._velocity = self._held_velocity = None
+        self._mean_velocity = self._held_velocity = None
         self._R_right_left = None
         self._sample_age = 0.0
 
@@ -76,26 +76,27 @@ class HeldObjectEstimate:
         midpoint = np.asarray(p_world_midpoint, dtype=float)
         R_world_grip = np.asarray(R_world_grip, dtype=float)
         p_world_estimate = np.asarray(p_world_estimate, dtype=float)
-        span = sample_span(dt, self._sample_age, sample_age)
-        self._sample_age = sample_age if span is not None else self._sample_age + dt
+        v_world_estimate = np.asarray(v_world_estimate, dtype=float)
         if self._offset is None or dt <= 0.0:
-            self._sample_age = sample_age
-            velocity = np.asarray(v_world_estimate, dtype=float)
-            midpoint_at_tick = midpoint + sample_age * velocity
+            midpoint_at_tick = midpoint + sample_age * v_world_estimate
             self._offset = R_world_grip.T @ (
                 p_world_estimate - midpoint_at_tick if planned_offset is None
                 else np.asarray(planned_offset, dtype=float))
-            self._midpoint, self._R_world_grip = midpoint, R_world_grip
-            return midpoint_at_tick + R_world_grip @ self._offset, velocity
-        if span is not None:
+            self._midpoint, self._R_world_grip, self._sample_age = (
+                midpoint, R_world_grip, sample_age)
+            return midpoint_at_tick + R_world_grip @ self._offset, v_world_estimate
+        span = sample_span(dt, self._sample_age, sample_age)
+        if span is None:
+            self._sample_age += dt
+        else:
             mean_velocity = (midpoint - self._midpoint + (R_world_grip - self._R_world_grip)
                              @ self._offset) / span
-            self._held_velocity = mean_velocity if self._velocity is None else (
-                1.5 * mean_velocity - 0.5 * self._velocity)
-            self._velocity = mean_velocity
-            self._midpoint, self._R_world_grip = midpoint, R_world_grip
-        velocity = (np.asarray(v_world_estimate, dtype=float) if self._held_velocity is None
-                    else self._held_velocity)
+            self._held_velocity = mean_velocity if self._mean_velocity is None else (
+                1.5 * mean_velocity - 0.5 * self._mean_velocity)
+            self._mean_velocity = mean_velocity
+            self._midpoint, self._R_world_grip, self._sample_age = (
+                midpoint, R_world_grip, sample_age)
+        velocity = v_world_estimate if self._held_velocity is None else self._held_velocity
         midpoint_at_tick = midpoint + sample_age * velocity
         gain = -math.expm1(-dt / time_constant)
         self._offset = self._offset + gain * (

@@ -231,8 +231,9 @@ class DualArmMotionGenerator:
         else:
             commands = self._standby(p_tools, R_tools, halt['tools'], halt['rotations'])
         return MotionOutput(
-            phase=PhaseMachineOutput(phase, self._phase_machine.task, self._phase_machine
-                                     .time_in_phase, ('halted',) if first else ()),
+            phase=PhaseMachineOutput(phase, self._phase_machine.task,
+                                     self._phase_machine.time_in_phase,
+                                     ('halted',) if first else ()),
             commands=commands, object_velocity=zero, object_angular_velocity=zero,
             contacts=contacts, pad_forces=pad_forces, grasp_frames=frames,
             impact_directions={arm: frames[arm].normal for arm in ARMS},
